@@ -1,0 +1,60 @@
+#include "meshkit/materials.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <unordered_map>
+
+namespace raysweep::meshkit {
+
+const std::vector<std::string>& itu_material_names() {
+  static const std::vector<std::string> names = {
+      "concrete",   "brick",        "plasterboard",  "wood",           "glass",
+      "ceiling_board", "chipboard", "floorboard",    "metal",          "very_dry_ground",
+      "medium_dry_ground", "wet_ground"};
+  return names;
+}
+
+bool is_itu_material(std::string_view name) {
+  const auto& n = itu_material_names();
+  return std::find(n.begin(), n.end(), name) != n.end();
+}
+
+std::optional<std::string> itu_material_from_id(std::string_view id) {
+  if (id.rfind("mat-", 0) == 0) id.remove_prefix(4);
+  if (id.rfind("itu_", 0) == 0) id.remove_prefix(4);
+  if (is_itu_material(id)) return std::string(id);
+  return std::nullopt;
+}
+
+std::optional<std::string> itu_material_from_osm(std::string_view osm_value) {
+  std::string v(osm_value);
+  std::transform(v.begin(), v.end(), v.begin(), [](unsigned char c) { return std::tolower(c); });
+  // OSM allows "a;b" lists; the first entry is the dominant material.
+  if (auto semi = v.find(';'); semi != std::string::npos) v.resize(semi);
+  while (!v.empty() && std::isspace(static_cast<unsigned char>(v.back()))) v.pop_back();
+  while (!v.empty() && std::isspace(static_cast<unsigned char>(v.front()))) v.erase(v.begin());
+  // Facades of stone and blocks are closest to concrete electrically
+  // (eps_r 5.2-5.3 at 1-10 GHz); plaster is applied over masonry but its thin
+  // layer is best approximated by plasterboard.
+  static const std::unordered_map<std::string, std::string> table = {
+      {"concrete", "concrete"},       {"reinforced_concrete", "concrete"},
+      {"cement_block", "concrete"},   {"stone", "concrete"},
+      {"sandstone", "concrete"},      {"limestone", "concrete"},
+      {"granite", "concrete"},        {"masonry", "brick"},
+      {"brick", "brick"},             {"bricks", "brick"},
+      {"clay", "brick"},              {"glass", "glass"},
+      {"mirror", "glass"},            {"wood", "wood"},
+      {"timber", "wood"},             {"timber_framing", "wood"},
+      {"log", "wood"},                {"bamboo", "wood"},
+      {"metal", "metal"},             {"steel", "metal"},
+      {"metal_plates", "metal"},      {"aluminium", "metal"},
+      {"aluminum", "metal"},          {"copper", "metal"},
+      {"tin", "metal"},               {"plaster", "plasterboard"},
+      {"plasterboard", "plasterboard"}, {"stucco", "plasterboard"},
+  };
+  if (auto it = table.find(v); it != table.end()) return it->second;
+  if (is_itu_material(v)) return v;
+  return std::nullopt;
+}
+
+}  // namespace raysweep::meshkit
