@@ -1,6 +1,82 @@
+// raysweep: scene preparation and V2X channel dataset generation.
 #include <CLI/CLI.hpp>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+#include <sstream>
+
+#include "meshkit/errors.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/scene_stage.hpp"
+#include "pipeline/version.hpp"
+
+namespace {
+
+std::optional<raysweep::meshkit::Vec2> parse_offset(const std::string& s) {
+  if (s.empty()) return std::nullopt;
+  std::istringstream in(s);
+  double x, y;
+  char comma;
+  if (!(in >> x >> comma >> y) || comma != ',') throw CLI::ValidationError("--net-offset", "expected X,Y");
+  return raysweep::meshkit::Vec2{x, y};
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
-  CLI::App app{"raysweep"};
+  // Logs go to stderr so stdout stays clean for summaries a script may parse.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("raysweep"));
+  spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
+  std::vector<std::string> args(argv, argv + argc);
+
+  CLI::App app{"raysweep: city-scale V2X ray-tracing datasets"};
+  app.set_version_flag("--version", std::string(raysweep::kVersion) + " (" + raysweep::kGitHash + ")");
+  app.require_subcommand(1);
+  bool quiet = false;
+  app.add_flag("-q,--quiet", quiet, "only warnings and errors");
+
+  raysweep::pipeline::SceneArgs scene;
+  std::string offset;
+  bool draco = false, no_draco = false;
+  auto* sc = app.add_subcommand("scene", "build a 3D radio scene from OSM + SUMO network, or import a Mitsuba scene");
+  sc->add_option("--osm", scene.osm, "OSM extract (.osm, .osm.gz, .osm.bz2, .osm.pbf)");
+  sc->add_option("--net", scene.net, "SUMO network (.net.xml[.gz]): projection and clipping area");
+  sc->add_option("--proj", scene.proj, "explicit PROJ string instead of --net");
+  sc->add_option("--net-offset", offset, "X,Y offset added after projection (with --proj)");
+  sc->add_option("--from-mitsuba", scene.from_mitsuba, "import a Sionna RT / Mitsuba scene.xml");
+  sc->add_option("--out", scene.out, "output scene folder")->required();
+  sc->add_option("--config", scene.config, "TOML config ([scene] table)");
+  sc->add_flag("--draco", draco, "Draco-compress the glTF geometry");
+  sc->add_flag("--no-draco", no_draco, "do not compress (overrides the config)");
+
   CLI11_PARSE(app, argc, argv);
+  if (quiet) spdlog::set_level(spdlog::level::warn);
+
+  try {
+    if (sc->parsed()) {
+      scene.net_offset = parse_offset(offset);
+      if (draco) scene.draco = true;
+      if (no_draco) scene.draco = false;
+      const auto manifest = raysweep::pipeline::run_scene_stage(scene, args);
+      std::cout << scene.out << ": " << manifest["triangle_count"] << " triangles";
+      if (manifest.contains("buildings"))
+        std::cout << ", buildings kept " << manifest["buildings"]["kept"] << " / repaired "
+                  << manifest["buildings"]["repaired"] << " / skipped " << manifest["buildings"]["skipped"];
+      std::cout << "\n";
+    }
+  } catch (const raysweep::meshkit::InputError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const raysweep::pipeline::ConfigError& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::invalid_argument& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 1;
+  }
   return 0;
 }

@@ -1,0 +1,30 @@
+// Stage configuration from TOML. Unknown keys and wrong types are errors that
+// name the file, the key and its line: a typo must never fall back silently.
+#pragma once
+
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "meshkit/city.hpp"
+
+namespace raysweep::pipeline {
+
+struct SceneConfig {
+  meshkit::CityOptions city;
+  bool draco = false;
+  int draco_position_bits = 16;
+  // The effective configuration (defaults filled in) for provenance records.
+  nlohmann::json to_json() const;
+};
+
+// Reads the [scene] table of `path` (other top-level tables are for other
+// stages and are checked by them). An empty path gives the defaults.
+SceneConfig load_scene_config(const std::string& path);
+
+// Thrown for config errors; the message names file, key and line.
+struct ConfigError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace raysweep::pipeline

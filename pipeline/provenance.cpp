@@ -1,0 +1,52 @@
+#include "pipeline/provenance.hpp"
+
+#include <openssl/evp.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+
+#include "pipeline/version.hpp"
+
+namespace raysweep::pipeline {
+
+std::string sha256_file(const std::string& path) {
+  std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), std::fclose);
+  if (!f) throw std::runtime_error(path + ": cannot open for hashing");
+  std::unique_ptr<EVP_MD_CTX, void (*)(EVP_MD_CTX*)> ctx(EVP_MD_CTX_new(), EVP_MD_CTX_free);
+  EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr);
+  std::vector<unsigned char> buf(1 << 16);
+  std::size_t n;
+  while ((n = std::fread(buf.data(), 1, buf.size(), f.get())) > 0) EVP_DigestUpdate(ctx.get(), buf.data(), n);
+  unsigned char digest[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_DigestFinal_ex(ctx.get(), digest, &len);
+  static const char* hex = "0123456789abcdef";
+  std::string out;
+  for (unsigned int i = 0; i < len; ++i) {
+    out.push_back(hex[digest[i] >> 4]);
+    out.push_back(hex[digest[i] & 15]);
+  }
+  return out;
+}
+
+nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>& inputs,
+                          const nlohmann::json& config, const std::vector<std::string>& argv) {
+  nlohmann::json in = nlohmann::json::array();
+  for (const auto& f : inputs) {
+    in.push_back({{"role", f.role},
+                  {"path", f.path},
+                  {"bytes", std::filesystem::file_size(f.path)},
+                  {"sha256", sha256_file(f.path)}});
+  }
+  return {{"tool", "raysweep"},
+          {"version", kVersion},
+          {"git", kGitHash},
+          {"stage", stage},
+          {"command", argv},
+          {"inputs", in},
+          {"config", config}};
+}
+
+}  // namespace raysweep::pipeline

@@ -1,0 +1,23 @@
+// Provenance records: every output says which tool, version, config, inputs
+// (with SHA-256) and seeds produced it. No timestamps: the same inputs give
+// byte-identical records.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+namespace raysweep::pipeline {
+
+std::string sha256_file(const std::string& path);  // hex; throws on unreadable files
+
+struct InputFile {
+  std::string role;  // "osm", "net", "config", ...
+  std::string path;
+};
+
+nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>& inputs,
+                          const nlohmann::json& config, const std::vector<std::string>& argv);
+
+}  // namespace raysweep::pipeline

@@ -1,0 +1,30 @@
+// Stage `raysweep scene`: OSM (+ SUMO network or projection) or a Mitsuba
+// scene in; scene.glb, mitsuba/scene.xml (+ PLY) and manifest.json out.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "meshkit/projection.hpp"
+
+namespace raysweep::pipeline {
+
+struct SceneArgs {
+  std::string osm;
+  std::string net;
+  std::string proj;                        // explicit projection instead of --net
+  std::optional<meshkit::Vec2> net_offset; // with --proj
+  std::string from_mitsuba;
+  std::string out;
+  std::string config;
+  std::optional<bool> draco;  // overrides the config
+};
+
+// Runs the stage; returns the manifest it wrote. Throws meshkit::InputError,
+// ConfigError or std::exception with a message naming file and element.
+nlohmann::json run_scene_stage(const SceneArgs& args, const std::vector<std::string>& argv);
+
+}  // namespace raysweep::pipeline
