@@ -39,6 +39,7 @@ void run_stage(benchmark::State& state, const fs::path& osm, const fs::path& net
   args.net = net.string();
   args.out = out.string();
   args.config = cfg.string();
+  args.preview = false;  // time the stage, not matplotlib
   nlohmann::json manifest;
   for (auto _ : state) manifest = raysweep::pipeline::run_scene_stage(args, {"bench"});
   state.counters["buildings"] = manifest["buildings"]["kept"].get<double>();

@@ -49,6 +49,8 @@ int main(int argc, char** argv) {
   sc->add_option("--config", scene.config, "TOML config ([scene] table)");
   sc->add_flag("--draco", draco, "Draco-compress the glTF geometry");
   sc->add_flag("--no-draco", no_draco, "do not compress (overrides the config)");
+  bool no_preview = false;
+  sc->add_flag("--no-preview", no_preview, "skip preview.png");
 
   CLI11_PARSE(app, argc, argv);
   if (quiet) spdlog::set_level(spdlog::level::warn);
@@ -58,6 +60,7 @@ int main(int argc, char** argv) {
       scene.net_offset = parse_offset(offset);
       if (draco) scene.draco = true;
       if (no_draco) scene.draco = false;
+      scene.preview = !no_preview;
       const auto manifest = raysweep::pipeline::run_scene_stage(scene, args);
       std::cout << scene.out << ": " << manifest["triangle_count"] << " triangles";
       if (manifest.contains("buildings"))

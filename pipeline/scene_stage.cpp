@@ -13,6 +13,7 @@
 #include "meshkit/osm_buildings.hpp"
 #include "meshkit/sumo_net.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 
@@ -148,6 +149,10 @@ json run_scene_stage(const SceneArgs& args, const std::vector<std::string>& argv
   meshkit::write_mitsuba(scene, (out.path() / "mitsuba").string());
   const auto t1 = std::chrono::steady_clock::now();
   write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  if (args.preview && run_python_script("scene_preview.py", {out.path().string()})) {
+    manifest["files"]["preview"] = "preview.png";
+    write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  }
   out.commit();
   spdlog::info("scene written to {} ({} triangles, {} objects, {:.2f} s)", args.out, scene.triangle_count(),
                scene.objects.size(), std::chrono::duration<double>(t1 - t0).count());

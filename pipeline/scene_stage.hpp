@@ -21,6 +21,7 @@ struct SceneArgs {
   std::string out;
   std::string config;
   std::optional<bool> draco;  // overrides the config
+  bool preview = true;        // write preview.png (python/scene_preview.py)
 };
 
 // Runs the stage; returns the manifest it wrote. Throws meshkit::InputError,

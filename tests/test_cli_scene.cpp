@@ -22,6 +22,9 @@ TEST(CliScene, DemoWritesGlbMitsubaAndManifest) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(fs::exists(dir / "scene/scene.glb"));
   EXPECT_TRUE(fs::exists(dir / "scene/mitsuba/scene.xml"));
+  // setup.sh installs Debian's matplotlib, so the preview is expected.
+  EXPECT_TRUE(fs::exists(dir / "scene/preview.png"));
+  EXPECT_EQ(read_text(dir / "scene/preview.png").substr(1, 3), "PNG");
   json m = json::parse(read_text(dir / "scene/manifest.json"));
   EXPECT_GT(m["buildings"]["kept"].get<int>(), 20);
   EXPECT_TRUE(m["topology"]["buildings_watertight"].get<bool>());
@@ -39,14 +42,15 @@ TEST(CliScene, DemoWritesGlbMitsubaAndManifest) {
   EXPECT_TRUE(found);
   EXPECT_TRUE(m["provenance"].contains("version"));
   EXPECT_TRUE(m["provenance"]["config"].contains("clip_distance_m"));
+  EXPECT_EQ(m["files"]["preview"], "preview.png");
   // Only the final folder remains: no temporary siblings.
   for (const auto& e : fs::directory_iterator(dir)) EXPECT_EQ(e.path().filename(), "scene");
 }
 
 TEST(CliScene, SameInputsGiveIdenticalBytes) {
   auto dir = scratch_dir("cli");
-  ASSERT_EQ(run_raysweep("-q scene " + demo_args() + " --out " + (dir / "a").string()).exit_code, 0);
-  ASSERT_EQ(run_raysweep("-q scene " + demo_args() + " --out " + (dir / "b").string()).exit_code, 0);
+  ASSERT_EQ(run_raysweep("-q scene --no-preview " + demo_args() + " --out " + (dir / "a").string()).exit_code, 0);
+  ASSERT_EQ(run_raysweep("-q scene --no-preview " + demo_args() + " --out " + (dir / "b").string()).exit_code, 0);
   EXPECT_EQ(read_text(dir / "a/scene.glb"), read_text(dir / "b/scene.glb"));
   EXPECT_EQ(read_text(dir / "a/mitsuba/scene.xml"), read_text(dir / "b/mitsuba/scene.xml"));
   // Manifests differ only in the --out path recorded in the command line.

@@ -15,6 +15,7 @@
 
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
+#include "meshkit/mitsuba_io.hpp"
 
 namespace fs = std::filesystem;
 using namespace raysweep::meshkit;
@@ -471,4 +472,33 @@ TEST(GltfIo, ForeignGltfWithoutExtrasGetsObjectsAndFaces) {
   EXPECT_NEAR(m.vertices[2][2], 1.0, 1e-12);
   // Normal was glTF +z (towards the viewer), i.e. scene -y.
   EXPECT_NEAR(triangle_normal(m, 0)[1], -1.0, 1e-12);
+}
+
+TEST(GltfIo, VaN3TwinSceneThroughGlb) {
+  const fs::path xml = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin" / "DriveX-devs_VaN3Twin" / "src" / "sionna" /
+                       "scenarios" / "SionnaCircleScenario" / "scene.xml";
+  if (!fs::exists(xml)) GTEST_SKIP() << "no VaN3Twin data at " << xml;
+  const Scene scene = read_mitsuba(xml.string());
+  ASSERT_GT(scene.triangle_count(), 0u);
+  const fs::path dir = temp_dir("van3twin");
+  write_glb(scene, (dir / "plain.glb").string(), {});
+  const Scene plain = read_glb((dir / "plain.glb").string());
+  expect_same_scene(scene, plain, std::vector<double>(scene.meshes.size(), 0.0));  // PLY floats stay exact
+
+  const int bits = 16;
+  write_glb(scene, (dir / "draco.glb").string(), {true, bits});
+  const Scene draco = read_glb((dir / "draco.glb").string());
+  std::vector<double> tol;
+  double worst_step = 0;
+  for (const Mesh& m : scene.meshes) {
+    Bounds b = Bounds::none();
+    for (const Vec3& v : m.vertices) b.extend(v);
+    const double step = draco_position_step(b, bits);
+    worst_step = std::max(worst_step, step);
+    tol.push_back(step / 2 + 4 * max_abs_coord(m) * 0x1p-24);
+  }
+  expect_same_scene(scene, draco, tol);
+  RecordProperty("plain_bytes", std::to_string(fs::file_size(dir / "plain.glb")));
+  RecordProperty("draco16_bytes", std::to_string(fs::file_size(dir / "draco.glb")));
+  RecordProperty("draco16_worst_step_m", std::to_string(worst_step));
 }

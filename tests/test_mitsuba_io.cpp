@@ -284,7 +284,7 @@ TEST(MitsubaIo, BsdfForms) {
   expect_input_error([&] { read_mitsuba((dir / "scene.xml").string()); }, {"mesh-Anon", "no id"});
 }
 
-TEST(PlyIo, AsciiPolygonsWithExtraPropertiesAreFanned) {
+TEST(MitsubaPly, AsciiPolygonsWithExtraPropertiesAreFanned) {
   const fs::path dir = temp_dir("ply_ascii");
   write_text(dir / "poly.ply",
              "ply\nformat ascii 1.0\ncomment made by hand\n"
@@ -310,7 +310,7 @@ TEST(PlyIo, AsciiPolygonsWithExtraPropertiesAreFanned) {
   EXPECT_EQ(read_ply((dir / "dup.ply").string()).triangles.size(), 3u);
 }
 
-TEST(PlyIo, BinaryRoundTripAndErrors) {
+TEST(MitsubaPly, BinaryRoundTripAndErrors) {
   const fs::path dir = temp_dir("ply_errors");
   const std::vector<Vec3> v = {{0.1, 0.2, 0.3}, {1e3, -2e3, 5.5}, {7, 8, 9}, {-1, -2, -3}};
   const std::vector<Tri> t = {{0, 1, 2}, {2, 1, 3}};
@@ -458,4 +458,24 @@ TEST(MitsubaIo, ImportsEveryVaN3TwinScene) {
     RecordProperty(xml.filename().string() + "_faces", std::to_string(faces_before));
   }
   EXPECT_EQ(total_shapes, 112u + 102u + 42u);
+}
+
+TEST(MitsubaIo, VaN3TwinSceneRoundTrips) {
+  const fs::path xml = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin" / "DriveX-devs_VaN3Twin" / "src" / "sionna" /
+                       "scenarios" / "SionnaCircleScenario" / "scene.xml";
+  if (!fs::exists(xml)) GTEST_SKIP() << "no VaN3Twin data at " << xml;
+  const Scene original = read_mitsuba(xml.string());
+  const fs::path dir = temp_dir("van3twin_roundtrip");
+  write_mitsuba(original, dir.string());
+  const Scene back = read_mitsuba((dir / "scene.xml").string());
+  ASSERT_EQ(back.meshes.size(), original.meshes.size());
+  for (std::size_t i = 0; i < original.meshes.size(); ++i) {
+    SCOPED_TRACE(original.meshes[i].name);
+    EXPECT_EQ(back.meshes[i].name, original.meshes[i].name);
+    EXPECT_EQ(back.meshes[i].material, original.meshes[i].material);
+    EXPECT_EQ(back.meshes[i].triangles, original.meshes[i].triangles);
+    EXPECT_EQ(back.meshes[i].vertices, original.meshes[i].vertices);  // already float-exact
+    EXPECT_EQ(back.meshes[i].triangle_face, original.meshes[i].triangle_face);
+    EXPECT_EQ(back.objects[i].source_id, original.objects[i].source_id);
+  }
 }

@@ -205,3 +205,28 @@ TEST(OsmInput, ClipToNetworkDistance) {
   opt.clip_distance_m = 0;  // disabled
   EXPECT_EQ(build_city(b, lanes, opt).report.kept.size(), 2u);
 }
+
+TEST(OsmInput, CompressedExtractsReadLikePlainOnes) {
+  const auto demo = raysweep::test::source_dir() / "datasets/demo/kirchberg.osm";
+  auto dir = scratch_dir("osm");
+  ASSERT_EQ(raysweep::test::run_command("gzip -c " + demo.string() + " > " + (dir / "k.osm.gz").string()).exit_code, 0);
+  ASSERT_EQ(raysweep::test::run_command("bzip2 -c " + demo.string() + " > " + (dir / "k.osm.bz2").string()).exit_code, 0);
+  auto plain = read_osm_buildings(demo.string(), flat);
+  for (const char* name : {"k.osm.gz", "k.osm.bz2"}) {
+    auto c = read_osm_buildings((dir / name).string(), flat);
+    ASSERT_EQ(c.buildings.size(), plain.buildings.size()) << name;
+    for (std::size_t i = 0; i < c.buildings.size(); ++i) {
+      EXPECT_EQ(c.buildings[i].source_id, plain.buildings[i].source_id);
+      EXPECT_EQ(c.buildings[i].outers, plain.buildings[i].outers);
+    }
+    EXPECT_EQ(c.skipped.size(), plain.skipped.size());
+  }
+}
+
+TEST(OsmInput, TruncatedCompressedExtractIsAnError) {
+  const auto demo = raysweep::test::source_dir() / "datasets/demo/kirchberg.osm";
+  auto dir = scratch_dir("osm");
+  ASSERT_EQ(raysweep::test::run_command("gzip -c " + demo.string() + " | head -c 3000 > " +
+                                        (dir / "t.osm.gz").string()).exit_code, 0);
+  EXPECT_THROW(read_osm_buildings((dir / "t.osm.gz").string(), flat), InputError);
+}
