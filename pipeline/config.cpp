@@ -82,7 +82,8 @@ SceneConfig load_scene_config(const std::string& path) {
     else if (key == "draco") cfg.draco = get_bool(path, full, node);
     else if (key == "draco_position_bits") {
       const double bits = get_number(path, full, node);
-      if (bits < 8 || bits > 30) throw ConfigError(where(path, full, node) + ": must be 8..30");
+      if (bits != 0 && (bits < 8 || bits > 30))
+        throw ConfigError(where(path, full, node) + ": must be 0 (lossless) or 8..30");
       cfg.draco_position_bits = static_cast<int>(bits);
     } else if (key == "material_map") {
       const toml::table* t = node.as_table();
