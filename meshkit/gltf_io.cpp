@@ -81,7 +81,7 @@ void check_writable(const Mesh& m) {
   auto bad = [&](const std::string& what) {
     return std::invalid_argument("write_glb: mesh '" + m.name + "': " + what);
   };
-  if (!is_itu_material(m.material)) throw bad("material '" + m.material + "' is not an ITU material");
+  if (!is_radio_material(m.material)) throw bad("material '" + m.material + "' is not a radio material");
   if (m.triangle_object.size() != m.triangles.size() || m.triangle_face.size() != m.triangles.size())
     throw bad("triangle_object/triangle_face need one entry per triangle");
   if (m.vertices.size() > std::numeric_limits<std::uint32_t>::max()) throw bad("too many vertices");
@@ -119,7 +119,7 @@ std::vector<unsigned char> encode_draco(const Mesh& m, int bits, int* position_i
 }
 
 int material_index(tinygltf::Model& model, const std::string& material) {
-  const std::string name = "itu_" + material;
+  const std::string name = radio_material_id(material);
   for (std::size_t i = 0; i < model.materials.size(); ++i)
     if (model.materials[i].name == name) return static_cast<int>(i);
   tinygltf::Material mat;
@@ -442,8 +442,8 @@ struct Reader {
     if (prim.material < 0 || static_cast<std::size_t>(prim.material) >= model.materials.size())
       fail(where, "no material (need itu_<material>)");
     const std::string& mat_name = model.materials[prim.material].name;
-    const auto material = itu_material_from_id(mat_name);
-    if (!material) fail(where, "material '" + mat_name + "' is not an ITU radio material (itu_<material>)");
+    const auto material = radio_material_from_id(mat_name);
+    if (!material) fail(where, "material '" + mat_name + "' is not a radio material (itu_<material> or a custom one)");
     m.material = *material;
 
     if (auto ext = prim.extensions.find(kDracoExtension); ext != prim.extensions.end()) {

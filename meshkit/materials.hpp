@@ -18,6 +18,26 @@ bool is_itu_material(std::string_view name);
 // the name is not an ITU material (callers must treat that as an error).
 std::optional<std::string> itu_material_from_id(std::string_view id);
 
+// Dielectrics that P.2040 does not list but vehicles are made of. Their
+// parameters are estimates for the 5.9 GHz band, documented in materials.cpp.
+struct CustomMaterial {
+  std::string name;
+  double eps_r;          // relative permittivity (real part)
+  double sigma_s_per_m;  // conductivity at 5.9 GHz
+  double thickness_m;    // default slab thickness
+  std::string basis;     // where the numbers come from
+};
+const std::vector<CustomMaterial>& custom_materials();
+const CustomMaterial* find_custom_material(std::string_view name);
+
+// ITU or custom: every triangle of a scene carries one of these.
+bool is_radio_material(std::string_view name);
+// Names as files carry them: "itu_concrete" for ITU materials, the plain
+// name ("plastic") for custom ones.
+std::string radio_material_id(std::string_view material);
+// Inverse of radio_material_id, also accepting a "mat-" prefix (Mitsuba ids).
+std::optional<std::string> radio_material_from_id(std::string_view id);
+
 // OSM building:material / building:facade:material values -> P.2040 name.
 // nullopt for values with no sensible mapping (the caller warns and falls back).
 std::optional<std::string> itu_material_from_osm(std::string_view osm_value);

@@ -61,9 +61,9 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
   for (const Mesh& m : scene.meshes) {
     if (m.triangles.empty()) continue;
     check_mesh_name(m.name, names);
-    if (!is_itu_material(m.material))
+    if (!is_radio_material(m.material))
       throw std::invalid_argument("write_mitsuba: mesh '" + m.name + "': material '" + m.material +
-                                  "' is not an ITU material");
+                                  "' is not a radio material");
     if (std::find(materials.begin(), materials.end(), m.material) == materials.end())
       materials.push_back(m.material);
   }
@@ -77,7 +77,7 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
   xml << "<scene version=\"2.1.0\">\n\n";
   xml << "<!-- Materials: Sionna RT maps mat-itu_<name> to ITU-R P.2040 materials -->\n\n";
   for (const std::string& mat : materials) {
-    const std::string id = xml_escape("mat-itu_" + mat);
+    const std::string id = xml_escape("mat-" + radio_material_id(mat));
     const auto rgb = material_display_color(mat);
     char value[64];
     std::snprintf(value, sizeof value, "%.6f %.6f %.6f", rgb[0], rgb[1], rgb[2]);
@@ -93,7 +93,7 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
     xml << "\t<shape type=\"ply\" id=\"" << id << "\" name=\"" << id << "\">\n"
         << "\t\t<string name=\"filename\" value=\"meshes/" << xml_escape(m.name) << ".ply\"/>\n"
         << "\t\t<boolean name=\"face_normals\" value=\"true\"/>\n"
-        << "\t\t<ref id=\"" << xml_escape("mat-itu_" + m.material) << "\" name=\"bsdf\"/>\n"
+        << "\t\t<ref id=\"" << xml_escape("mat-" + radio_material_id(m.material)) << "\" name=\"bsdf\"/>\n"
         << "\t</shape>\n";
   }
   xml << "</scene>\n";
@@ -344,9 +344,9 @@ Scene read_mitsuba(const std::string& scene_xml) {
         }
       if (bsdf_id.empty()) throw fail("has no bsdf, so its radio material is unknown");
     }
-    const auto material = itu_material_from_id(bsdf_id);
+    const auto material = radio_material_from_id(bsdf_id);
     if (!material)
-      throw fail("bsdf '" + bsdf_id + "' is not an ITU radio material (expected mat-itu_<" +
+      throw fail("bsdf '" + bsdf_id + "' is not a radio material (expected mat-itu_<" +
                  "concrete|brick|metal|...>)");
 
     if (s.filename.empty()) throw fail("has no <string name=\"filename\">");

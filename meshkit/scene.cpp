@@ -1,5 +1,7 @@
 #include "meshkit/scene.hpp"
 
+#include "meshkit/materials.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -53,7 +55,7 @@ std::size_t Scene::triangle_count() const {
 }
 
 Mesh& Scene::mesh_for(const std::string& material, const std::string& prefix) {
-  const std::string name = prefix + "-itu_" + material;
+  const std::string name = prefix + "-" + radio_material_id(material);
   for (Mesh& m : meshes)
     if (m.name == name) return m;
   meshes.push_back(Mesh{name, material, {}, {}, {}, {}});

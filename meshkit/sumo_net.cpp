@@ -99,4 +99,33 @@ std::vector<SumoPolygon> read_sumo_polygons(const std::string& path) {
   return polys;
 }
 
+std::vector<SumoVType> read_sumo_vtypes(const std::string& path) {
+  std::vector<SumoVType> out;
+  XmlCallbacks cb;
+  cb.start = [&](const XmlStart& e) {
+    if (e.name != "vType") return;
+    SumoVType t;
+    t.line = e.line;
+    const char* id = e.attr("id");
+    if (!id) throw InputError(path, "line " + std::to_string(e.line) + " vType", "has no id");
+    t.id = id;
+    t.vclass = e.attr("vClass") ? e.attr("vClass") : "passenger";
+    auto number = [&](const char* key, double& value) {
+      const char* v = e.attr(key);
+      if (!v) return;
+      char* end = nullptr;
+      value = std::strtod(v, &end);
+      if (end == v || *end != '\0' || !(value > 0))
+        throw InputError(path, "line " + std::to_string(e.line) + " vType " + t.id,
+                         std::string(key) + "='" + v + "' is not a positive length in metres");
+    };
+    number("length", t.length);
+    number("width", t.width);
+    number("height", t.height);
+    out.push_back(std::move(t));
+  };
+  parse_xml_file(path, cb);
+  return out;
+}
+
 }  // namespace raysweep::meshkit

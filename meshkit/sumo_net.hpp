@@ -33,4 +33,14 @@ struct SumoPolygon {
 // All <poly> elements of a SUMO additional file (e.g. polyconvert output).
 std::vector<SumoPolygon> read_sumo_polygons(const std::string& path);
 
+struct SumoVType {
+  std::string id;
+  std::string vclass;  // "passenger" when the file does not say (SUMO's default)
+  double length = 0, width = 0, height = 0;  // 0 when not given
+  long line = 0;
+};
+
+// All <vType> elements of a SUMO route or additional file.
+std::vector<SumoVType> read_sumo_vtypes(const std::string& path);
+
 }  // namespace raysweep::meshkit

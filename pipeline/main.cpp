@@ -9,6 +9,7 @@
 #include "meshkit/errors.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/vehicles_stage.hpp"
 #include "pipeline/version.hpp"
 
 namespace {
@@ -52,6 +53,15 @@ int main(int argc, char** argv) {
   bool no_preview = false;
   sc->add_flag("--no-preview", no_preview, "skip preview.png");
 
+  raysweep::pipeline::VehiclesArgs vehicles;
+  bool vehicles_no_preview = false;
+  auto* vc = app.add_subcommand("vehicles", "build the vehicle library: one GLB per class and LOD + manifest");
+  vc->add_option("--out", vehicles.out, "output library folder")->required();
+  vc->add_option("--model", vehicles.models, "CLASS=FILE: use a glTF/GLB/OBJ/PLY/OFF model for a class");
+  vc->add_option("--vtypes", vehicles.vtypes, "SUMO file with <vType> elements: one entry per vType");
+  vc->add_option("--config", vehicles.config, "TOML config ([vehicles] table)");
+  vc->add_flag("--no-preview", vehicles_no_preview, "skip preview.png");
+
   CLI11_PARSE(app, argc, argv);
   if (quiet) spdlog::set_level(spdlog::level::warn);
 
@@ -67,6 +77,11 @@ int main(int argc, char** argv) {
         std::cout << ", buildings kept " << manifest["buildings"]["kept"] << " / repaired "
                   << manifest["buildings"]["repaired"] << " / skipped " << manifest["buildings"]["skipped"];
       std::cout << "\n";
+    }
+    if (vc->parsed()) {
+      vehicles.preview = !vehicles_no_preview;
+      const auto manifest = raysweep::pipeline::run_vehicles_stage(vehicles, args);
+      std::cout << vehicles.out << ": " << manifest["vehicles"].size() << " vehicle models\n";
     }
   } catch (const raysweep::meshkit::InputError& e) {
     spdlog::error("{}", e.what());

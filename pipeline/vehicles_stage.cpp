@@ -1,0 +1,334 @@
+#include "pipeline/vehicles_stage.hpp"
+
+#include <spdlog/spdlog.h>
+#include <toml++/toml.h>
+
+#include <algorithm>
+#include <chrono>
+#include <filesystem>
+#include <set>
+
+#include "meshkit/errors.hpp"
+#include "meshkit/gltf_io.hpp"
+#include "meshkit/materials.hpp"
+#include "meshkit/model_import.hpp"
+#include "meshkit/sumo_net.hpp"
+#include "meshkit/vehicle_classes.hpp"
+#include "meshkit/vehicle_lod.hpp"
+#include "meshkit/vehicle_parametric.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/preview.hpp"
+#include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
+
+namespace raysweep::pipeline {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using namespace raysweep::meshkit;
+
+namespace {
+
+std::string at(const std::string& path, const std::string& key, const toml::node& n) {
+  return path + ": key '" + key + "' (line " + std::to_string(n.source().begin.line) + ")";
+}
+double number(const std::string& path, const std::string& key, const toml::node& n) {
+  if (auto v = n.value<double>()) return *v;
+  throw ConfigError(at(path, key, n) + ": expected a number");
+}
+
+json dims_json(const VehicleDims& d) { return {{"length", d.length}, {"width", d.width}, {"height", d.height}}; }
+
+}  // namespace
+
+VehiclesConfig load_vehicles_config(const std::string& path) {
+  VehiclesConfig cfg;
+  if (path.empty()) return cfg;
+  load_scene_config(path);  // validates the file and its top-level sections
+  toml::table root = toml::parse_file(path);
+  const toml::table* v = root["vehicles"].as_table();
+  if (!v) return cfg;
+  for (auto&& [k, node] : *v) {
+    const std::string key(k.str()), full = "vehicles." + key;
+    if (key == "classes") {
+      const toml::array* a = node.as_array();
+      if (!a) throw ConfigError(at(path, full, node) + ": expected a list of class names");
+      for (auto&& c : *a) {
+        auto s = c.value<std::string>();
+        if (!s || !find_vehicle_class(*s)) throw ConfigError(at(path, full, c) + ": unknown vehicle class");
+        cfg.classes.push_back(*s);
+      }
+    } else if (key == "lod_ratios") {
+      const toml::array* a = node.as_array();
+      if (!a || a->empty()) throw ConfigError(at(path, full, node) + ": expected a list of ratios");
+      cfg.lod_ratios.clear();
+      for (auto&& r : *a) {
+        const double x = number(path, full, r);
+        if (!(x > 0 && x <= 1)) throw ConfigError(at(path, full, r) + ": ratios must be in (0, 1]");
+        cfg.lod_ratios.push_back(x);
+      }
+    } else if (key == "lod_tolerance_m") cfg.lod_tolerance_m = number(path, full, node);
+    else if (key == "lod_max_error_m") cfg.lod_max_error_m = number(path, full, node);
+    else if (key == "antenna_offset_m") cfg.antenna_offset_m = number(path, full, node);
+    else if (key == "scale_to_class") {
+      auto b = node.value<bool>();
+      if (!b) throw ConfigError(at(path, full, node) + ": expected true or false");
+      cfg.scale_to_class = *b;
+    } else if (key == "draco") {
+      auto b = node.value<bool>();
+      if (!b) throw ConfigError(at(path, full, node) + ": expected true or false");
+      cfg.draco = *b;
+    } else if (key == "draco_position_bits") cfg.draco_position_bits = static_cast<int>(number(path, full, node));
+    else if (key == "default_material") {
+      auto s = node.value<std::string>();
+      if (!s || !is_radio_material(*s)) throw ConfigError(at(path, full, node) + ": unknown radio material");
+      cfg.rules.default_material = *s;
+    } else if (key == "rules") {
+      // A rules list replaces the built-in table entirely: partial merges of
+      // ordered first-match rules would be impossible to reason about.
+      const toml::array* a = node.as_array();
+      if (!a) throw ConfigError(at(path, full, node) + ": expected [[vehicles.rules]] tables");
+      cfg.rules.rules.clear();
+      for (auto&& r : *a) {
+        const toml::table* t = r.as_table();
+        if (!t) throw ConfigError(at(path, full, r) + ": expected a table {field, pattern, material}");
+        SegmentationRule rule;
+        for (auto&& [rk, rv] : *t) {
+          const std::string name(rk.str());
+          auto s = rv.value<std::string>();
+          if (!s) throw ConfigError(at(path, full + "." + name, rv) + ": expected a string");
+          if (name == "field") rule.field = *s;
+          else if (name == "pattern") rule.pattern = *s;
+          else if (name == "material") rule.material = *s;
+          else throw ConfigError(at(path, full + "." + name, rv) + ": unknown key");
+        }
+        if (rule.field.empty()) rule.field = "any";
+        if (!is_radio_material(rule.material))
+          throw ConfigError(at(path, full, r) + ": unknown radio material '" + rule.material + "'");
+        cfg.rules.rules.push_back(rule);
+      }
+    } else if (key == "class") {
+      const toml::table* t = node.as_table();
+      if (!t) throw ConfigError(at(path, full, node) + ": expected [vehicles.class.<name>] tables");
+      for (auto&& [ck, cv] : *t) {
+        const toml::table* ct = cv.as_table();
+        const std::string cname(ck.str());
+        if (!ct) throw ConfigError(at(path, full + "." + cname, cv) + ": expected a table");
+        VehicleEntryConfig e;
+        for (auto&& [pk, pv] : *ct) {
+          const std::string pname(pk.str()), pfull = full + "." + cname + "." + pname;
+          if (pname == "length") e.dims.length = number(path, pfull, pv);
+          else if (pname == "width") e.dims.width = number(path, pfull, pv);
+          else if (pname == "height") e.dims.height = number(path, pfull, pv);
+          else if (pname == "antenna") {
+            const toml::array* a = pv.as_array();
+            if (!a || a->size() != 3) throw ConfigError(at(path, pfull, pv) + ": expected [x, y, z]");
+            e.antenna = Vec3{number(path, pfull, *a->get(0)), number(path, pfull, *a->get(1)),
+                             number(path, pfull, *a->get(2))};
+          } else {
+            throw ConfigError(at(path, pfull, pv) + ": unknown key");
+          }
+        }
+        cfg.entries[cname] = e;
+      }
+    } else {
+      throw ConfigError(at(path, full, node) + ": unknown key");
+    }
+  }
+  return cfg;
+}
+
+json VehiclesConfig::to_json() const {
+  json rules_j = json::array();
+  for (const auto& r : rules.rules) rules_j.push_back({{"field", r.field}, {"pattern", r.pattern}, {"material", r.material}});
+  json entries_j = json::object();
+  for (const auto& [name, e] : entries) {
+    entries_j[name] = dims_json(e.dims);
+    if (e.antenna) entries_j[name]["antenna"] = *e.antenna;
+  }
+  return {{"classes", classes},        {"lod_ratios", lod_ratios},           {"lod_tolerance_m", lod_tolerance_m}, {"lod_max_error_m", lod_max_error_m},
+          {"antenna_offset_m", antenna_offset_m}, {"scale_to_class", scale_to_class}, {"draco", draco},
+          {"draco_position_bits", draco_position_bits}, {"rules", rules_j},
+          {"default_material", rules.default_material}, {"class", entries_j}};
+}
+
+BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, const std::string& model_file,
+                           const VehiclesConfig& cfg) {
+  const VehicleClassInfo* info = find_vehicle_class(vclass);
+  if (!info) throw std::invalid_argument(name + ": vehicle class '" + vclass + "' is not modelled");
+  VehicleDims dims = info->dims;
+  VehicleEntryConfig entry;
+  if (auto it = cfg.entries.find(name); it != cfg.entries.end()) entry = it->second;
+  if (entry.dims.length > 0) dims.length = entry.dims.length;
+  if (entry.dims.width > 0) dims.width = entry.dims.width;
+  if (entry.dims.height > 0) dims.height = entry.dims.height;
+
+  BuiltVehicle out;
+  json& rec = out.record;
+  VehicleModel& m = out.model;
+  if (model_file.empty()) {
+    m = parametric_vehicle(name, vclass, info->archetype, dims, cfg.antenna_offset_m);
+    rec["source"] = "parametric";
+    rec["archetype"] = info->archetype;
+  } else {
+    ImportedModel imp = import_model(model_file);
+    m.name = name;
+    m.vclass = vclass;
+    m.source = model_file;
+    for (auto& p : imp.parts) m.parts.push_back({p.name, p.material, "", "", std::move(p.vertices), std::move(p.triangles)});
+    m.repairs = imp.repairs;
+    m.warnings = imp.warnings;
+    const NormalizeReport norm = normalize(m, cfg.scale_to_class ? dims : VehicleDims{});
+    const SegmentReport seg = segment(m, cfg.rules);
+    m.antenna = roof_mount(m, -m.dims().length / 2, 0, cfg.antenna_offset_m);
+    rec["source"] = model_file;
+    rec["unit_scale"] = imp.unit_scale;
+    rec["file_up_axis"] = imp.up_axis;
+    rec["native_dims"] = dims_json(norm.native);
+    rec["scale"] = norm.scale;
+    rec["orientation"] = norm.orientation;
+    rec["segmentation"] = {{"geometric", seg.geometric}, {"by_rule", seg.by_rule}, {"by_default", seg.by_default}};
+  }
+  if (entry.antenna) m.antenna = *entry.antenna;
+  rec["name"] = name;
+  rec["vclass"] = vclass;
+  rec["dims"] = dims_json(m.dims());
+  rec["antenna"] = m.antenna;
+  json parts = json::array();
+  for (const auto& p : m.parts) {
+    VehicleModel one;
+    one.parts.push_back(p);
+    double area = 0;
+    for (const auto& [mat, a] : one.area_by_material()) area += a;
+    parts.push_back({{"name", p.name},
+                     {"source_material", p.source_material},
+                     {"material", p.material},
+                     {"rule", p.rule},
+                     {"triangles", p.triangles.size()},
+                     {"area_m2", area}});
+  }
+  rec["parts"] = parts;
+  rec["area_by_material_m2"] = m.area_by_material();
+  rec["repairs"] = m.repairs;
+  rec["warnings"] = m.warnings;
+  return out;
+}
+
+json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (args.out.empty()) throw std::invalid_argument("--out is required");
+  const VehiclesConfig cfg = load_vehicles_config(args.config);
+  std::vector<InputFile> inputs;
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+
+  // Entries: built-in classes, then imported models replacing a class, then vTypes.
+  struct Entry {
+    std::string name, vclass, file;
+  };
+  std::vector<Entry> entries;
+  std::vector<std::string> classes = cfg.classes;
+  if (classes.empty())
+    for (const auto& c : vehicle_classes()) classes.push_back(c.vclass);
+  for (const auto& c : classes) entries.push_back({c, c, ""});
+  for (const auto& spec : args.models) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
+      throw std::invalid_argument("--model expects CLASS=FILE, got '" + spec + "'");
+    const std::string cls = spec.substr(0, eq), file = spec.substr(eq + 1);
+    if (!find_vehicle_class(cls)) throw std::invalid_argument("--model " + spec + ": unknown vehicle class '" + cls + "'");
+    auto it = std::find_if(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == cls; });
+    if (it == entries.end()) entries.push_back({cls, cls, file});
+    else it->file = file;
+    inputs.push_back({"model:" + cls, file});
+  }
+  if (!args.vtypes.empty()) {
+    inputs.push_back({"vtypes", args.vtypes});
+    for (const auto& vt : read_sumo_vtypes(args.vtypes)) {
+      if (!find_vehicle_class(vt.vclass)) {
+        spdlog::warn("{}: vType {} has vClass {} which raysweep does not model; skipped", args.vtypes, vt.id, vt.vclass);
+        continue;
+      }
+      if (std::any_of(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == vt.id; }))
+        throw meshkit::InputError(args.vtypes, "line " + std::to_string(vt.line) + " vType " + vt.id,
+                                  "id collides with a vehicle class name");
+      entries.push_back({vt.id, vt.vclass, ""});
+    }
+  }
+  VehiclesConfig effective = cfg;
+  if (!args.vtypes.empty())
+    for (const auto& vt : read_sumo_vtypes(args.vtypes)) {
+      auto& e = effective.entries[vt.id];
+      if (e.dims.length <= 0) e.dims.length = vt.length;
+      if (e.dims.width <= 0) e.dims.width = vt.width;
+      if (e.dims.height <= 0) e.dims.height = vt.height;
+    }
+
+  StagedDirectory out(args.out);
+  GltfOptions gopt;
+  gopt.draco = cfg.draco;
+  gopt.draco_position_bits = cfg.draco_position_bits;
+  json list = json::array();
+  std::size_t done = 0;
+  for (const auto& e : entries) {
+    const auto te = std::chrono::steady_clock::now();
+    BuiltVehicle built = build_vehicle(e.name, e.vclass, e.file, effective);
+    for (const auto& w : built.model.warnings) spdlog::warn("{}: {}", e.name, w);
+    json lods = json::array();
+    int default_lod = 0;
+    std::size_t previous = SIZE_MAX;
+    for (std::size_t k = 0; k < cfg.lod_ratios.size(); ++k) {
+      VehicleModel lod = cfg.lod_ratios[k] >= 1 ? built.model : simplify_vehicle(built.model, cfg.lod_ratios[k], cfg.lod_max_error_m);
+      const std::size_t tris = lod.triangle_count();
+      if (tris >= previous) continue;  // cannot shrink further: no duplicate LOD
+      previous = tris;
+      const double h = k == 0 ? 0.0 : hausdorff_distance(built.model, lod);
+      const std::string file = e.name + "_lod" + std::to_string(lods.size()) + ".glb";
+      write_glb(to_scene(lod), (out.path() / file).string(), gopt);
+      const auto er = welded_edge_report(lod);
+      if (h <= cfg.lod_tolerance_m) default_lod = static_cast<int>(lods.size());
+      lods.push_back({{"lod", lods.size()},
+                      {"file", file},
+                      {"ratio", cfg.lod_ratios[k]},
+                      {"triangles", tris},
+                      {"hausdorff_m", h},
+                      {"boundary_edges", er.boundary_edges},
+                      {"area_by_material_m2", lod.area_by_material()}});
+    }
+    built.record["lods"] = lods;
+    built.record["default_lod"] = default_lod;
+    built.record["build_seconds"] =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - te).count();
+    list.push_back(built.record);
+    spdlog::info("vehicles {}/{}: {} ({} triangles, {} LODs, default LOD {})", ++done, entries.size(), e.name,
+                 built.model.triangle_count(), lods.size(), default_lod);
+  }
+  json materials = json::array();
+  for (const auto& cm : custom_materials())
+    materials.push_back({{"name", cm.name},
+                         {"eps_r", cm.eps_r},
+                         {"sigma_s_per_m", cm.sigma_s_per_m},
+                         {"thickness_m", cm.thickness_m},
+                         {"basis", cm.basis}});
+  json manifest = {{"frame", "metres; z up; front along +x; origin at the front-bumper centre on the ground"},
+                   {"vehicles", list},
+                   {"custom_materials", materials},
+                   {"provenance", provenance("vehicles", inputs, effective.to_json(), argv)}};
+  // Build times vary run to run; keep them out of the byte-compared manifest.
+  json timings = json::object();
+  for (auto& v : manifest["vehicles"]) {
+    timings[v["name"].get<std::string>()] = v["build_seconds"];
+    v.erase("build_seconds");
+  }
+  write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  write_file_atomic(out.path() / "timings.json", timings.dump(2) + "\n");
+  if (args.preview && run_python_script("vehicles_preview.py", {out.path().string()})) {
+    manifest["files"] = {{"preview", "preview.png"}};
+    write_file_atomic(out.path() / "manifest.json", manifest.dump(2) + "\n");
+  }
+  out.commit();
+  spdlog::info("vehicle library written to {} ({} entries, {:.2f} s)", args.out, entries.size(),
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  return manifest;
+}
+
+}  // namespace raysweep::pipeline
