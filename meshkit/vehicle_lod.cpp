@@ -5,6 +5,7 @@
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Core/System/omstream.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
@@ -24,7 +25,22 @@ using OM = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
 }  // namespace
 
 static VehicleModel simplify_once(const VehicleModel& model, double ratio, double max_error_m) {
+  // OpenMesh reports every rejected (non-manifold) face on stderr; they are
+  // counted and kept here, so its messages would only be noise.
+  static const bool quiet = [] {
+    omerr().disable();
+    return true;
+  }();
+  (void)quiet;
   VehicleModel out = model;
+  // Where parts touch (a door's border on the body's interior, a window in its
+  // frame), the contact vertices must stay put in both, or the seam opens.
+  std::map<Vec3, std::size_t> owner;  // position -> part index, or SIZE_MAX when shared
+  for (std::size_t i = 0; i < model.parts.size(); ++i)
+    for (const auto& v : model.parts[i].vertices) {
+      auto [it, fresh] = owner.emplace(v, i);
+      if (!fresh && it->second != i) it->second = SIZE_MAX;
+    }
   for (auto& part : out.parts) {
     if (part.triangles.size() < 8) continue;
     // Weld by position first: seams (UV, normals) would otherwise look like
@@ -33,6 +49,7 @@ static VehicleModel simplify_once(const VehicleModel& model, double ratio, doubl
     std::map<Vec3, OM::VertexHandle> weld;
     std::vector<Tri> kept;  // faces OpenMesh cannot hold (non-manifold): left as they are
     std::vector<Vec3> kept_vertices;
+    std::vector<OM::VertexHandle> pinned;  // corners of kept faces: moving them would orphan those faces
     for (const auto& t : part.triangles) {
       std::array<OM::VertexHandle, 3> vh;
       for (int k = 0; k < 3; ++k) {
@@ -42,6 +59,7 @@ static VehicleModel simplify_once(const VehicleModel& model, double ratio, doubl
         vh[k] = it->second;
       }
       if (vh[0] == vh[1] || vh[1] == vh[2] || vh[0] == vh[2] || !mesh.add_face(vh[0], vh[1], vh[2]).is_valid()) {
+        for (auto h : vh) pinned.push_back(h);
         const auto base = static_cast<std::uint32_t>(kept_vertices.size());
         for (auto v : t) kept_vertices.push_back(part.vertices[v]);
         kept.push_back({base, base + 1, base + 2});
@@ -53,9 +71,13 @@ static VehicleModel simplify_once(const VehicleModel& model, double ratio, doubl
     mesh.request_face_normals();
     mesh.update_face_normals();
     // The part's border is a material boundary (or the model's own hole):
-    // locking it keeps both, and with them the closedness of the whole.
-    for (auto v : mesh.vertices())
-      if (mesh.is_boundary(v)) mesh.status(v).set_locked(true);
+    // locking it, and every contact with another part, keeps both, and with
+    // them the closedness of the whole.
+    for (auto v : mesh.vertices()) {
+      const auto& p = mesh.point(v);
+      if (mesh.is_boundary(v) || owner.at(Vec3{p[0], p[1], p[2]}) == SIZE_MAX) mesh.status(v).set_locked(true);
+    }
+    for (auto v : pinned) mesh.status(v).set_locked(true);
     OpenMesh::Decimater::DecimaterT<OM> decimater(mesh);
     OpenMesh::Decimater::ModQuadricT<OM>::Handle quadric;
     OpenMesh::Decimater::ModNormalFlippingT<OM>::Handle flipping;

@@ -1,6 +1,7 @@
 #include "meshkit/vehicle_segment.hpp"
 
 #include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
+#include <OpenMesh/Core/System/omstream.hh>
 
 #include <algorithm>
 #include <cmath>
@@ -115,6 +116,13 @@ struct DoubleTraits : OpenMesh::DefaultTraits {
 }  // namespace
 
 void segment_geometric(VehicleModel& model, const SegmentationRules& rules) {
+  // OpenMesh reports every rejected (non-manifold) face on stderr; they are
+  // counted and kept here, so its messages would only be noise.
+  static const bool quiet = [] {
+    omerr().disable();
+    return true;
+  }();
+  (void)quiet;
   using OM = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
   OM mesh;
   std::map<Vec3, OM::VertexHandle> weld;
