@@ -15,6 +15,7 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
+#include "meshkit/mat4.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/material_colors.hpp"
 #include "meshkit/materials.hpp"
@@ -287,17 +288,6 @@ void hide_draco_indices(std::vector<unsigned char>& glb) {
   glb = std::move(out);
 }
 
-using Mat4 = std::array<double, 16>;  // row-major
-
-Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
-
-Mat4 multiply(const Mat4& a, const Mat4& b) {
-  Mat4 c{};
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) c[i * 4 + j] += a[i * 4 + k] * b[k * 4 + j];
-  return c;
-}
 
 Mat4 node_matrix(const tinygltf::Node& n) {
   if (n.matrix.size() == 16) {

@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "meshkit/mat4.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/material_colors.hpp"
 #include "meshkit/materials.hpp"
@@ -108,17 +109,6 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
 
 namespace {
 
-using Mat4 = std::array<double, 16>;  // row-major affine transform
-
-Mat4 identity() { return {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}; }
-
-Mat4 multiply(const Mat4& a, const Mat4& b) {
-  Mat4 c{};
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) c[i * 4 + j] += a[i * 4 + k] * b[k * 4 + j];
-  return c;
-}
 
 struct ShapeDef {
   std::string type;

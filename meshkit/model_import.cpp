@@ -27,6 +27,7 @@
 #include <unordered_map>
 #include <utility>
 
+#include "meshkit/mat4.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/ply_io.hpp"
 
@@ -181,7 +182,6 @@ void finish(ImportedModel& m) {
 
 // ---------------------------------------------------------------- glTF
 
-using Mat4 = std::array<double, 16>;  // row-major
 
 constexpr Mat4 kIdentity = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1};
 // (x, y, z)_raysweep = (z, x, y)_glTF.
@@ -189,13 +189,6 @@ constexpr Mat4 kYUpToZUp = {0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 1};
 constexpr const char* kDraco = "KHR_draco_mesh_compression";
 constexpr const char* kQuantization = "KHR_mesh_quantization";
 
-Mat4 multiply(const Mat4& a, const Mat4& b) {
-  Mat4 c{};
-  for (int i = 0; i < 4; ++i)
-    for (int j = 0; j < 4; ++j)
-      for (int k = 0; k < 4; ++k) c[i * 4 + j] += a[i * 4 + k] * b[k * 4 + j];
-  return c;
-}
 
 double det3(const Mat4& t) {
   return t[0] * (t[5] * t[10] - t[6] * t[9]) - t[1] * (t[4] * t[10] - t[6] * t[8]) +
