@@ -4,8 +4,6 @@
 #include <CGAL/AABB_tree.h>
 #include <CGAL/AABB_triangle_primitive.h>
 #include <CGAL/Exact_predicates_inexact_constructions_kernel.h>
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 #include <OpenMesh/Tools/Decimater/DecimaterT.hh>
 #include <OpenMesh/Tools/Decimater/ModNormalFlippingT.hh>
 #include <OpenMesh/Tools/Decimater/ModQuadricT.hh>
@@ -14,24 +12,13 @@
 #include <cmath>
 #include <map>
 
+#include "meshkit/openmesh_util.hpp"
+
 namespace raysweep::meshkit {
 
-namespace {
-struct DoubleTraits : OpenMesh::DefaultTraits {
-  using Point = OpenMesh::Vec3d;
-  using Normal = OpenMesh::Vec3d;
-};
-using OM = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
-}  // namespace
+using OM = OMMesh;
 
 static VehicleModel simplify_once(const VehicleModel& model, double ratio, double max_error_m) {
-  // OpenMesh reports every rejected (non-manifold) face on stderr; they are
-  // counted and kept here, so its messages would only be noise.
-  static const bool quiet = [] {
-    omerr().disable();
-    return true;
-  }();
-  (void)quiet;
   VehicleModel out = model;
   // Where parts touch (a door's border on the body's interior, a window in its
   // frame), the contact vertices must stay put in both, or the seam opens.
@@ -46,19 +33,13 @@ static VehicleModel simplify_once(const VehicleModel& model, double ratio, doubl
     // Weld by position first: seams (UV, normals) would otherwise look like
     // borders and stay locked.
     OM mesh;
-    std::map<Vec3, OM::VertexHandle> weld;
+    OpenMeshWelder welder(mesh);
     std::vector<Tri> kept;  // faces OpenMesh cannot hold (non-manifold): left as they are
     std::vector<Vec3> kept_vertices;
     std::vector<OM::VertexHandle> pinned;  // corners of kept faces: moving them would orphan those faces
     for (const auto& t : part.triangles) {
       std::array<OM::VertexHandle, 3> vh;
-      for (int k = 0; k < 3; ++k) {
-        const Vec3& v = part.vertices[t[k]];
-        auto it = weld.find(v);
-        if (it == weld.end()) it = weld.emplace(v, mesh.add_vertex(OM::Point(v[0], v[1], v[2]))).first;
-        vh[k] = it->second;
-      }
-      if (vh[0] == vh[1] || vh[1] == vh[2] || vh[0] == vh[2] || !mesh.add_face(vh[0], vh[1], vh[2]).is_valid()) {
+      if (!welder.add(part.vertices[t[0]], part.vertices[t[1]], part.vertices[t[2]], vh)) {
         for (auto h : vh) pinned.push_back(h);
         const auto base = static_cast<std::uint32_t>(kept_vertices.size());
         for (auto v : t) kept_vertices.push_back(part.vertices[v]);

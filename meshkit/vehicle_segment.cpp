@@ -1,7 +1,5 @@
 #include "meshkit/vehicle_segment.hpp"
 
-#include <OpenMesh/Core/Mesh/TriMesh_ArrayKernelT.hh>
-#include <OpenMesh/Core/System/omstream.hh>
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +8,7 @@
 #include <stdexcept>
 
 #include "meshkit/materials.hpp"
+#include "meshkit/openmesh_util.hpp"
 
 namespace raysweep::meshkit {
 
@@ -106,37 +105,15 @@ SegmentReport segment(VehicleModel& model, const SegmentationRules& rules) {
   return rep;
 }
 
-namespace {
-// Double precision: OpenMesh's default float points would move vertices by
-// ~1e-7 m and break welding with the original geometry.
-struct DoubleTraits : OpenMesh::DefaultTraits {
-  using Point = OpenMesh::Vec3d;
-  using Normal = OpenMesh::Vec3d;
-};
-}  // namespace
-
 void segment_geometric(VehicleModel& model, const SegmentationRules& rules) {
-  // OpenMesh reports every rejected (non-manifold) face on stderr; they are
-  // counted and kept here, so its messages would only be noise.
-  static const bool quiet = [] {
-    omerr().disable();
-    return true;
-  }();
-  (void)quiet;
-  using OM = OpenMesh::TriMesh_ArrayKernelT<DoubleTraits>;
+  using OM = OMMesh;
   OM mesh;
-  std::map<Vec3, OM::VertexHandle> weld;
+  OpenMeshWelder welder(mesh);
   std::vector<std::array<Vec3, 3>> rejected;  // faces OpenMesh cannot hold (non-manifold)
   for (const auto& p : model.parts)
     for (const auto& t : p.triangles) {
       std::array<OM::VertexHandle, 3> vh;
-      for (int k = 0; k < 3; ++k) {
-        const Vec3& v = p.vertices[t[k]];
-        auto it = weld.find(v);
-        if (it == weld.end()) it = weld.emplace(v, mesh.add_vertex(OM::Point(v[0], v[1], v[2]))).first;
-        vh[k] = it->second;
-      }
-      if (vh[0] == vh[1] || vh[1] == vh[2] || vh[0] == vh[2] || !mesh.add_face(vh[0], vh[1], vh[2]).is_valid())
+      if (!welder.add(p.vertices[t[0]], p.vertices[t[1]], p.vertices[t[2]], vh))
         rejected.push_back({p.vertices[t[0]], p.vertices[t[1]], p.vertices[t[2]]});
     }
   mesh.request_face_normals();

@@ -241,9 +241,11 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
     else it->file = file;
     inputs.push_back({"model:" + cls, file});
   }
+  std::vector<SumoVType> vtypes;
   if (!args.vtypes.empty()) {
     inputs.push_back({"vtypes", args.vtypes});
-    for (const auto& vt : read_sumo_vtypes(args.vtypes)) {
+    vtypes = read_sumo_vtypes(args.vtypes);
+    for (const auto& vt : vtypes) {
       if (!find_vehicle_class(vt.vclass)) {
         spdlog::warn("{}: vType {} has vClass {} which raysweep does not model; skipped", args.vtypes, vt.id, vt.vclass);
         continue;
@@ -255,13 +257,12 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
     }
   }
   VehiclesConfig effective = cfg;
-  if (!args.vtypes.empty())
-    for (const auto& vt : read_sumo_vtypes(args.vtypes)) {
-      auto& e = effective.entries[vt.id];
-      if (e.dims.length <= 0) e.dims.length = vt.length;
-      if (e.dims.width <= 0) e.dims.width = vt.width;
-      if (e.dims.height <= 0) e.dims.height = vt.height;
-    }
+  for (const auto& vt : vtypes) {
+    auto& e = effective.entries[vt.id];
+    if (e.dims.length <= 0) e.dims.length = vt.length;
+    if (e.dims.width <= 0) e.dims.width = vt.width;
+    if (e.dims.height <= 0) e.dims.height = vt.height;
+  }
 
   StagedDirectory out(args.out);
   GltfOptions gopt;

@@ -13,12 +13,14 @@
 #include <random>
 #include <set>
 
+#include "scene_fixtures.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/mitsuba_io.hpp"
 
 namespace fs = std::filesystem;
 using namespace raysweep::meshkit;
+using raysweep::test::add_box;
 
 namespace {
 
@@ -29,19 +31,6 @@ fs::path temp_dir(const std::string& name) {
   return dir;
 }
 
-// Axis-aligned box as 12 outward triangles, two per planar face.
-void add_box(Mesh& m, Vec3 lo, Vec3 hi, std::uint32_t object, std::uint32_t& next_face) {
-  const auto base = static_cast<std::uint32_t>(m.vertices.size());
-  for (int i = 0; i < 8; ++i)
-    m.vertices.push_back({i & 1 ? hi[0] : lo[0], i & 2 ? hi[1] : lo[1], i & 4 ? hi[2] : lo[2]});
-  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads) {
-    m.triangles.push_back({base + q[0], base + q[1], base + q[2]});
-    m.triangles.push_back({base + q[0], base + q[2], base + q[3]});
-    m.triangle_object.insert(m.triangle_object.end(), 2, object);
-    m.triangle_face.insert(m.triangle_face.end(), 2, next_face++);
-  }
-}
 
 // Buildings far from the origin (SUMO-like coordinates, not float-exact),
 // ground, and an irregular soup with shared and unused vertices.
