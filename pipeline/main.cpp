@@ -4,11 +4,15 @@
 #include <spdlog/spdlog.h>
 
 #include <iostream>
+#include <map>
 #include <sstream>
 
 #include "meshkit/errors.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/staged_output.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "pipeline/trace_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
 #include "pipeline/version.hpp"
 
@@ -62,6 +66,30 @@ int main(int argc, char** argv) {
   vc->add_option("--config", vehicles.config, "TOML config ([vehicles] table)");
   vc->add_flag("--no-preview", vehicles_no_preview, "skip preview.png");
 
+  raysweep::pipeline::TraceArgs trace;
+  auto* tc = app.add_subcommand("trace", "trace one snapshot: every antenna pair's paths, gains and LoS class");
+  tc->add_option("--scene", trace.scene, "scene folder (from `raysweep scene`)")->required();
+  tc->add_option("--vehicles", trace.vehicles, "vehicle library folder (default: built-in parametric models)");
+  tc->add_option("--poses", trace.poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
+  tc->add_option("--nodes", trace.nodes, "bare antennas CSV: id,x,y,z");
+  tc->add_option("--out", trace.out, "output .json")->required();
+  tc->add_option("--config", trace.config, "TOML config ([radio], [tracer], [materials.<name>])");
+  tc->add_option("--lod", trace.lod, "vehicle LOD (default: each library entry's default)");
+  tc->add_option("--exclude-objects", trace.exclude_objects,
+                 "regex on static object ids to leave out (e.g. '^mesh-car_' for Sionna's placeholder cars)");
+
+  std::string poses_net, poses_out, poses_mix = "passenger";
+  int poses_count = 10;
+  std::uint64_t poses_seed = 1;
+  double poses_gap = 8.0;
+  auto* pc = app.add_subcommand("poses", "place vehicles along a SUMO network's lanes (a poses CSV for `trace`)");
+  pc->add_option("--net", poses_net, "SUMO network (.net.xml[.gz])")->required();
+  pc->add_option("--count", poses_count, "number of vehicles")->check(CLI::PositiveNumber);
+  pc->add_option("--seed", poses_seed, "random seed (same seed, same poses)");
+  pc->add_option("--classes", poses_mix, "class mix, e.g. passenger:8,truck:1,bus:1");
+  pc->add_option("--min-gap", poses_gap, "minimum distance between front points (m)");
+  pc->add_option("--out", poses_out, "output CSV")->required();
+
   CLI11_PARSE(app, argc, argv);
   if (quiet) spdlog::set_level(spdlog::level::warn);
 
@@ -82,6 +110,26 @@ int main(int argc, char** argv) {
       vehicles.preview = !vehicles_no_preview;
       const auto manifest = raysweep::pipeline::run_vehicles_stage(vehicles, args);
       std::cout << vehicles.out << ": " << manifest["vehicles"].size() << " vehicle models\n";
+    }
+    if (tc->parsed()) {
+      const auto summary = raysweep::pipeline::run_trace_stage(trace, args);
+      std::cout << trace.out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
+                << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
+                << " paths\n";
+    }
+    if (pc->parsed()) {
+      std::map<std::string, double> mix;
+      std::istringstream in(poses_mix);
+      std::string item;
+      while (std::getline(in, item, ',')) {
+        const auto colon = item.find(':');
+        const std::string name = item.substr(0, colon);
+        mix[name] = colon == std::string::npos ? 1.0 : std::stod(item.substr(colon + 1));
+      }
+      const auto net = raysweep::meshkit::read_sumo_network(poses_net);
+      const auto rows = raysweep::pipeline::place_on_lanes(net, poses_count, poses_seed, mix, poses_gap);
+      raysweep::pipeline::write_file_atomic(poses_out, raysweep::pipeline::poses_csv(rows));
+      std::cout << poses_out << ": " << rows.size() << " vehicles\n";
     }
   } catch (const raysweep::meshkit::InputError& e) {
     spdlog::error("{}", e.what());

@@ -1,0 +1,170 @@
+#include "pipeline/trace_stage.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <filesystem>
+#include <regex>
+
+#include "meshkit/gltf_io.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
+#include "pipeline/trace_config.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "tracer/tracer.hpp"
+
+namespace raysweep::pipeline {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+// JSON has no infinities: a pair without paths reports null gains.
+json db_or_null(double linear) {
+  if (!(linear > 0)) return nullptr;
+  return tracer::to_db(linear);
+}
+
+// Static scene without the objects matching `pattern` (e.g. the placeholder
+// car boxes of a Sionna scene, which our own vehicles replace).
+meshkit::Scene exclude_objects(const meshkit::Scene& in, const std::string& pattern) {
+  if (pattern.empty()) return in;
+  const std::regex re(pattern);
+  std::vector<bool> drop(in.objects.size());
+  for (std::size_t i = 0; i < in.objects.size(); ++i) drop[i] = std::regex_search(in.objects[i].source_id, re);
+  meshkit::Scene out;
+  out.objects = in.objects;
+  for (const auto& m : in.meshes) {
+    meshkit::Mesh k;
+    k.name = m.name;
+    k.material = m.material;
+    k.vertices = m.vertices;
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const auto obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
+      if (obj < drop.size() && drop[obj]) continue;
+      k.triangles.push_back(m.triangles[t]);
+      k.triangle_object.push_back(obj);
+      if (t < m.triangle_face.size()) k.triangle_face.push_back(m.triangle_face[t]);
+    }
+    if (!k.triangles.empty()) out.meshes.push_back(std::move(k));
+  }
+  return out;
+}
+
+}  // namespace
+
+json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>& nodes,
+                   const std::vector<std::string>& objects, const std::vector<std::string>& materials) {
+  json pairs = json::array();
+  for (const auto& p : snap.pairs) {
+    json paths = json::array();
+    for (const auto& path : p.paths) {
+      json inter = json::array();
+      for (const auto& i : path.interactions)
+        inter.push_back({{"type", tracer::interaction_name(i.type)},
+                         {"object", objects.at(i.object)},
+                         {"material", materials.at(i.material)},
+                         {"point", i.point}});
+      paths.push_back({{"a_re", path.a.real()},
+                       {"a_im", path.a.imag()},
+                       {"tau_s", path.tau_s},
+                       {"theta_t", path.theta_t},
+                       {"phi_t", path.phi_t},
+                       {"theta_r", path.theta_r},
+                       {"phi_r", path.phi_r},
+                       {"doppler_hz", path.doppler_hz},
+                       {"interactions", inter}});
+    }
+    json blockers = json::array();
+    for (auto b : p.blockers) blockers.push_back(objects.at(b));
+    pairs.push_back({{"tx", nodes[p.tx].id},
+                     {"rx", nodes[p.rx].id},
+                     {"los_class", tracer::los_class_name(p.los_class)},
+                     {"blockers", blockers},
+                     {"path_gain_db", db_or_null(p.stats.gain_coherent)},
+                     {"path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent)},
+                     {"delay_s", p.stats.first_delay_s},
+                     {"rms_delay_spread_s", p.stats.rms_delay_spread_s},
+                     {"n_paths", p.paths.size()},
+                     {"candidates", p.candidates},
+                     {"dropped_transmission_cap", p.dropped_transmission_cap},
+                     {"paths", paths}});
+  }
+  json node_list = json::array();
+  for (const auto& n : nodes)
+    node_list.push_back({{"id", n.id}, {"position", n.position}, {"velocity", n.velocity}, {"vehicle", n.vehicle}});
+  return {{"nodes", node_list},
+          {"pairs", pairs},
+          {"stats",
+           {{"rays", snap.stats.rays},
+            {"candidates", snap.stats.candidates},
+            {"paths", snap.stats.paths},
+            {"dropped_transmission_cap", snap.stats.dropped_transmission_cap}}}};
+}
+
+json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto ext = fs::path(args.out).extension().string();
+  if (ext == ".h5")
+    throw std::invalid_argument(args.out + ": HDF5 output comes with the dataset schema (raysweep sweep); "
+                                "write .json for a single snapshot");
+  if (ext != ".json") throw std::invalid_argument(args.out + ": output must end in .json");
+  const TraceSettings settings = load_trace_config(args.config);
+
+  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
+  if (!fs::exists(scene_file))
+    throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
+  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
+
+  std::vector<InputFile> inputs{{"scene", scene_file.string()}};
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  VehicleLibrary library(args.vehicles, args.lod);
+  std::vector<PoseRow> poses;
+  if (!args.poses.empty()) {
+    poses = read_poses_csv(args.poses);
+    inputs.push_back({"poses", args.poses});
+    try {
+      place_vehicles(scene, library, poses);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(args.poses + ": " + e.what());
+    }
+    for (const auto& f : library.files()) inputs.push_back({"vehicle_model", f});
+  }
+  auto nodes = tracer::vehicle_nodes(scene);
+  if (!args.nodes.empty()) {
+    inputs.push_back({"nodes", args.nodes});
+    for (const auto& r : read_nodes_csv(args.nodes)) {
+      for (const auto& n : nodes)
+        if (n.id == r.id) throw std::invalid_argument(args.nodes + ": node id '" + r.id + "' is also a vehicle id");
+      nodes.push_back(tracer::Node{r.id, {r.x, r.y, r.z}, {0, 0, 0}, {1, 0, 0}, -1});
+    }
+  }
+  if (nodes.size() < 2) throw std::invalid_argument("trace: need at least two antennas (--poses and/or --nodes)");
+
+  const auto t1 = std::chrono::steady_clock::now();
+  const auto snap = tracer::trace_snapshot(scene, nodes, settings.tracer, settings.radio);
+  const double trace_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+
+  json out = snapshot_json(snap, nodes, scene.object_names(), scene.material_names());
+  json config = settings.to_json();
+  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
+  config["lod"] = args.lod;
+  config["exclude_objects"] = args.exclude_objects;
+  out["radio"] = config["radio"];
+  out["provenance"] = provenance("trace", inputs, config, argv);
+  out["provenance"]["embree"] = tracer::embree_version();
+  if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
+  write_file_atomic(args.out, out.dump(1) + "\n");
+  std::size_t los = 0, nlosv = 0, nlos = 0;
+  for (const auto& p : snap.pairs)
+    (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
+  spdlog::info("traced {} antennas, {} pairs ({} LOS / {} NLOSV / {} NLOS), {} paths in {:.1f} ms; total {:.2f} s",
+               nodes.size(), snap.pairs.size(), los, nlosv, nlos, snap.stats.paths, trace_s * 1e3,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  return {{"pairs", snap.pairs.size()}, {"paths", snap.stats.paths}, {"los", los}, {"nlosv", nlosv},
+          {"nlos", nlos}, {"trace_ms", trace_s * 1e3}};
+}
+
+}  // namespace raysweep::pipeline

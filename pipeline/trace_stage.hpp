@@ -1,0 +1,32 @@
+// Stage `raysweep trace`: one snapshot (static scene + vehicles at given
+// poses + bare nodes) traced for every pair of antennas, written as JSON.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "tracer/solver.hpp"
+
+namespace raysweep::pipeline {
+
+struct TraceArgs {
+  std::string scene;     // folder written by `raysweep scene` (scene.glb)
+  std::string vehicles;  // vehicle library folder; empty: built-in parametric models
+  std::string poses;     // CSV id,class,x,y,heading_deg,speed_mps[,z]
+  std::string nodes;     // CSV id,x,y,z
+  std::string out;       // .json
+  std::string config;    // TOML ([radio], [tracer], [materials.*])
+  int lod = -1;          // vehicle LOD; -1: each entry's default
+  std::string exclude_objects;  // regex on static object ids to leave out (e.g. "^mesh-car_")
+};
+
+// Per-pair JSON as documented for `raysweep trace` (names resolved).
+nlohmann::json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>& nodes,
+                             const std::vector<std::string>& object_names,
+                             const std::vector<std::string>& material_names);
+
+nlohmann::json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv);
+
+}  // namespace raysweep::pipeline

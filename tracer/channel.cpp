@@ -1,0 +1,62 @@
+#include "tracer/channel.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+#include <string>
+
+namespace raysweep::tracer {
+
+OfdmGrid ofdm_80211p(double carrier_hz) { return OfdmGrid{carrier_hz, 156250.0, 64}; }
+
+OfdmGrid ofdm_nr(int numerology, int n_rb, double carrier_hz) {
+  if (numerology < 0 || numerology > 4)
+    throw std::invalid_argument("ofdm_nr: numerology must be 0..4, got " + std::to_string(numerology));
+  if (n_rb < 1) throw std::invalid_argument("ofdm_nr: n_rb must be >= 1, got " + std::to_string(n_rb));
+  return OfdmGrid{carrier_hz, 15e3 * double(1 << numerology), 12 * n_rb};
+}
+
+std::vector<std::complex<double>> frequency_response(const std::vector<Path>& paths, const OfdmGrid& grid) {
+  std::vector<std::complex<double>> h(std::max(grid.n_subcarriers, 0), {0, 0});
+  for (int k = 0; k < grid.n_subcarriers; ++k) {
+    const double df = grid.offset_hz(k);
+    std::complex<double> acc{0, 0};
+    for (const Path& p : paths) acc += p.a * std::polar(1.0, -2 * std::numbers::pi * df * p.tau_s);
+    h[k] = acc;
+  }
+  return h;
+}
+
+namespace {
+double sinc(double x) {
+  if (x == 0) return 1.0;
+  const double px = std::numbers::pi * x;
+  return std::sin(px) / px;
+}
+}  // namespace
+
+ImpulseResponse impulse_response(const std::vector<Path>& paths, double bandwidth_hz, double sample_rate_hz,
+                                 int n_taps, double lead_s) {
+  if (!(bandwidth_hz > 0)) throw std::invalid_argument("impulse_response: bandwidth must be positive");
+  if (!(sample_rate_hz > 0)) throw std::invalid_argument("impulse_response: sample rate must be positive");
+  if (n_taps < 1) throw std::invalid_argument("impulse_response: n_taps must be >= 1");
+
+  ImpulseResponse ir;
+  ir.sample_period_s = 1.0 / sample_rate_hz;
+  ir.taps.assign(n_taps, {0, 0});
+  if (paths.empty()) return ir;
+
+  double first = paths.front().tau_s;
+  for (const Path& p : paths) first = std::min(first, p.tau_s);
+  ir.t0_s = first - lead_s;
+
+  for (const Path& p : paths) {
+    // Relative delay first: t0 and tau may both be large absolute values.
+    const double rel = p.tau_s - ir.t0_s;
+    for (int n = 0; n < n_taps; ++n) ir.taps[n] += p.a * sinc(bandwidth_hz * (n * ir.sample_period_s - rel));
+  }
+  return ir;
+}
+
+}  // namespace raysweep::tracer

@@ -1,0 +1,110 @@
+// Electromagnetics: ITU-R P.2040 materials at the carrier, interface (Fresnel)
+// and single-layer slab reflection/transmission coefficients, antenna
+// patterns. Conventions (used by the path solver, tested in test_em):
+//  - TE ("s"): field perpendicular to the plane of incidence, basis vector
+//    e_s = k x n (normalised); TM ("p"): e_p = e_s x k, for the incident and
+//    the outgoing direction alike. With this basis P.2040's R_TM is +1 for a
+//    perfect conductor at normal incidence and both R -> -1 at grazing.
+//  - exp(+j w t) time dependence: a lossy material has eta = eps_r - j sigma/(w eps0).
+//  - Slab transmission phase is referenced to free-space propagation over the
+//    same thickness, so a zero-thickness mesh surface stands in for the slab
+//    and the path length stays geometric.
+#pragma once
+
+#include <complex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tracer/vec.hpp"
+
+namespace raysweep::tracer {
+
+using cdouble = std::complex<double>;
+
+constexpr double kSpeedOfLight = 299792458.0;    // m/s
+constexpr double kVacuumPermittivity = 8.8541878128e-12;  // F/m
+constexpr double kPi = 3.14159265358979323846;
+
+// One row of ITU-R P.2040 Table 3: eps_r = a f^b, sigma = c f^d with f in GHz,
+// valid for f_min_ghz <= f <= f_max_ghz.
+struct P2040Row {
+  std::string name;  // meshkit name without "itu_" ("concrete", "medium_dry_ground"...)
+  double a, b, c, d;
+  double f_min_ghz, f_max_ghz;
+};
+const std::vector<P2040Row>& p2040_table();
+
+// A material evaluated at one carrier frequency.
+struct RadioMaterial {
+  std::string name;
+  double eps_r = 1;         // real relative permittivity
+  double sigma = 0;         // conductivity, S/m
+  double thickness_m = 0;   // slab thickness; 0 = half space (reflects, never transmits)
+  double frequency_hz = 0;  // the carrier it was evaluated at
+  // Complex relative permittivity eps_r - j sigma / (2 pi f eps0).
+  cdouble eta() const;
+};
+
+// Config overrides of a material ([materials.<name>] in the TOML config).
+struct MaterialOverride {
+  std::optional<double> eps_r, sigma, thickness_m;
+};
+
+// Default slab thickness by name: glass 5 mm, concrete 0.3 m, brick 0.25 m,
+// plasterboard 12.5 mm, wood 40 mm, ceiling board / chipboard / floorboard
+// 20 mm, metal 2 mm, grounds 0 (half space); custom materials: their own.
+double default_thickness_m(const std::string& name);
+
+// The material `name` (a P.2040 name or a meshkit custom material) at
+// `frequency_hz`. Throws std::invalid_argument naming the material and its
+// validity range when the frequency is outside it, or when the name is
+// unknown. Overrides replace the computed values (an override of both eps_r
+// and sigma lifts the validity check).
+RadioMaterial radio_material(const std::string& name, double frequency_hz, const MaterialOverride& override = {});
+
+// TE/TM pair of complex coefficients.
+struct TeTm {
+  cdouble te, tm;
+};
+
+// Reflection at an air / half-space interface (P.2040 eqs. for R_TE, R_TM),
+// `cos_theta` = cosine of the incidence angle from the normal, in [0, 1].
+TeTm interface_reflection(cdouble eta, double cos_theta);
+
+// Single-layer slab of thickness d (P.2040 section on the single-layer slab):
+// q = (2 pi d / lambda) sqrt(eta - sin^2 theta),
+// R = R'(1 - e^{-j2q}) / (1 - R'^2 e^{-j2q}),
+// T = (1 - R'^2) e^{-j(q - q0)} / (1 - R'^2 e^{-j2q}), q0 = (2 pi d / lambda) cos theta.
+// A half space (thickness 0) gives the interface reflection and T = 0.
+struct SlabCoefficients {
+  TeTm r, t;
+};
+SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta);
+
+enum class AntennaPattern { isotropic, short_dipole, halfwave_dipole };
+enum class Polarization { V, H };
+
+struct AntennaSpec {
+  AntennaPattern pattern = AntennaPattern::isotropic;
+  Polarization polarization = Polarization::V;
+};
+
+// Parses "isotropic" | "dipole" (short dipole) | "halfwave"; "V" | "H".
+// Throw std::invalid_argument on anything else.
+AntennaPattern parse_antenna_pattern(const std::string& s);
+Polarization parse_polarization(const std::string& s);
+
+// Far-field vector pattern: a vector perpendicular to `dir` whose length is
+// the amplitude gain sqrt(G(dir)) and whose direction is the radiated field's
+// polarisation. `dir` is a unit direction in the world frame; the antenna's
+// local frame has z up and x along `forward` (unit, horizontal; the vehicle
+// heading). Vertical polarisation: isotropic -> theta_hat; dipoles along z
+// (short: G = 1.5 sin^2 theta; half-wave: G = 1.64 (cos(pi/2 cos theta)/sin theta)^2),
+// field along theta_hat. Horizontal: isotropic -> phi_hat of the local frame;
+// dipoles along the local y axis (broadside to the driving direction). At the
+// poles of the pattern (where theta_hat/phi_hat are undefined) a deterministic
+// perpendicular vector is used.
+Vec3 antenna_field(const AntennaSpec& antenna, const Vec3& dir, const Vec3& forward);
+
+}  // namespace raysweep::tracer

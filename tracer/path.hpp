@@ -1,0 +1,52 @@
+// Propagation paths and per-pair results: what the tracer hands to the
+// generators. Object and material ids index the tables of the traced scene
+// (TraceScene::object_names(), TraceScene::material_names()).
+#pragma once
+
+#include <complex>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "tracer/vec.hpp"
+
+namespace raysweep::tracer {
+
+// Codes are stable: datasets store them.
+enum class InteractionType : std::uint8_t { specular = 1, refraction = 2, diffuse = 3, diffraction = 4 };
+const char* interaction_name(InteractionType t);
+
+enum class LosClass : std::uint8_t { LOS = 0, NLOSV = 1, NLOS = 2 };
+const char* los_class_name(LosClass c);
+
+struct Interaction {
+  InteractionType type;
+  std::uint32_t object;    // scene object (building, ground, vehicle)
+  std::uint16_t material;  // index into the scene's material table
+  Vec3 point;              // where it happens (scene frame, metres)
+};
+
+struct Path {
+  std::complex<double> a;  // baseband gain at the carrier, incl. exp(-j 2 pi f tau)
+  double tau_s = 0;        // delay
+  double theta_t = 0, phi_t = 0;  // departure direction at tx (radians)
+  double theta_r = 0, phi_r = 0;  // arrival direction, pointing from rx to where the wave comes from
+  double doppler_hz = 0;
+  std::vector<Interaction> interactions;  // in order from tx to rx
+};
+
+// Aggregates over a set of paths (all in linear units / seconds).
+struct PathStats {
+  double gain_coherent = 0;    // |sum a|^2
+  double gain_incoherent = 0;  // sum |a|^2
+  double first_delay_s = 0;    // min tau (0 when no path)
+  double mean_delay_s = 0;     // power-weighted
+  double rms_delay_spread_s = 0;
+  std::size_t n_paths = 0;
+};
+PathStats path_stats(const std::vector<Path>& paths);
+
+// 10 log10(x), with -inf kept for zero.
+double to_db(double linear_power);
+
+}  // namespace raysweep::tracer

@@ -1,0 +1,97 @@
+// Path solver: for every unordered pair of antenna nodes, the line-of-sight,
+// specular and refracted paths with full polarisation, and the LoS class.
+//
+// Search: shoot-and-bounce from every node proposes sequences of reflecting
+// faces (a ray that passes close to another node nominates the faces it
+// bounced on); the image method then recomputes each sequence exactly in
+// double precision and traces every segment, adding the slabs it crosses and
+// rejecting it when the reflection point is off its face or the way is
+// opaque. Sequences found from either end of a pair are merged, so each
+// unordered pair is traced once and a_ij = a_ji.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "tracer/config.hpp"
+#include "tracer/path.hpp"
+#include "tracer/trace_scene.hpp"
+
+namespace raysweep::tracer {
+
+// An antenna: on a vehicle (vehicle >= 0: index into the scene's vehicles) or
+// a bare node (road-side unit, test probe).
+struct Node {
+  std::string id;
+  Vec3 position{0, 0, 0};
+  Vec3 velocity{0, 0, 0};
+  Vec3 forward{1, 0, 0};  // orientation of the antenna pattern (horizontal unit vector)
+  int vehicle = -1;
+};
+
+// Nodes of the scene's current vehicles (antenna mounts, velocities, headings).
+std::vector<Node> vehicle_nodes(const TraceScene& scene);
+
+struct PairResult {
+  std::uint32_t tx = 0, rx = 0;  // node indices, tx < rx
+  LosClass los_class = LosClass::LOS;
+  std::vector<std::uint32_t> blockers;  // objects on the direct segment (sorted, unique)
+  std::vector<Path> paths;              // sorted by delay
+  PathStats stats;
+  std::uint32_t candidates = 0;         // face sequences refined
+  std::uint32_t dropped_transmission_cap = 0;  // valid paths dropped for crossing > max_transmissions slabs
+};
+
+struct SnapshotStats {
+  std::uint64_t rays = 0;            // Embree queries (shoot-and-bounce + refinement + LoS)
+  std::uint64_t candidates = 0;
+  std::uint64_t paths = 0;
+  std::uint64_t dropped_transmission_cap = 0;
+};
+
+struct Snapshot {
+  std::vector<PairResult> pairs;  // (0,1), (0,2), ..., (1,2), ...
+  SnapshotStats stats;
+};
+
+// Materials evaluated at the carrier for one scene (errors for materials
+// used by the scene whose P.2040 range excludes the carrier).
+class Electromagnetics {
+ public:
+  Electromagnetics(const std::vector<std::string>& material_names, const RadioConfig& radio,
+                   const std::map<std::string, MaterialOverride>& overrides);
+  const RadioMaterial& material(std::uint16_t i) const { return materials_.at(i); }
+  SlabCoefficients coefficients(std::uint16_t i, double cos_theta) const;
+  // Loss of the strongest polarisation through the slab at normal incidence (dB, >= 0).
+  double normal_transmission_loss_db(std::uint16_t i) const { return normal_loss_db_.at(i); }
+  double wavelength() const { return kSpeedOfLight / radio_.frequency_hz; }
+  const RadioConfig& radio() const { return radio_; }
+
+ private:
+  RadioConfig radio_;
+  std::vector<RadioMaterial> materials_;
+  std::vector<double> normal_loss_db_;
+};
+
+// Traces all pairs of `nodes` in the scene's current frame. Deterministic for
+// any number of threads.
+Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes, const TracerConfig& config,
+                        const RadioConfig& radio);
+
+// The exact path from `from` to `to` reflecting on `faces` in order, or
+// nullopt when it does not exist (off a face, blocked, or over the slab cap:
+// `over_cap` says which). Exposed for tests (reciprocity, closed forms).
+std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
+                                 const Node& from, const Node& to, const std::vector<FaceRef>& faces,
+                                 bool* over_cap = nullptr, std::uint64_t* rays = nullptr);
+
+// The LoS class of the direct segment and the objects blocking it.
+LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,
+                      std::uint64_t* rays = nullptr);
+
+// n directions of a spherical Fibonacci lattice (deterministic, near-uniform).
+std::vector<Vec3> fibonacci_sphere(int n);
+
+}  // namespace raysweep::tracer

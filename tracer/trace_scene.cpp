@@ -1,0 +1,368 @@
+#include "tracer/trace_scene.hpp"
+
+#include <embree3/rtcore.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <map>
+#include <stdexcept>
+
+#include "meshkit/planar_faces.hpp"
+
+namespace raysweep::tracer {
+
+namespace {
+
+constexpr std::uint32_t kNone = RTC_INVALID_GEOMETRY_ID;
+
+void check_device(RTCDevice device, const char* what) {
+  const RTCError e = rtcGetDeviceError(device);
+  if (e != RTC_ERROR_NONE) throw std::runtime_error(std::string("Embree error ") + std::to_string(e) + " in " + what);
+}
+
+}  // namespace
+
+struct TraceScene::Shape {
+  std::string name;
+  std::vector<Vec3> vertices;  // shape frame: world for the static scene, library frame for a model
+  std::vector<meshkit::Tri> triangles;
+  std::vector<std::uint32_t> tri_face;  // dense face index
+  std::vector<Plane> face_plane;
+  std::vector<double> face_flatness;
+  std::vector<std::uint16_t> face_material;
+  std::vector<std::uint32_t> face_object;
+  Vec3 antenna{0, 0, 0};
+  RTCScene scene = nullptr;
+};
+
+struct TraceScene::Impl {
+  RTCDevice device = nullptr;
+  Vec3 origin{0, 0, 0};  // Embree's float frame is relative to this point
+  meshkit::Bounds bounds = meshkit::Bounds::none();
+  std::vector<std::string> static_objects;
+  Shape world;
+  std::vector<std::unique_ptr<Shape>> models;
+  RTCScene top = nullptr;
+  std::vector<RTCGeometry> slots;  // vehicle instance v lives at top-level geometry id v + 1
+  std::vector<bool> slot_enabled;
+  std::vector<double> cos_yaw, sin_yaw;
+
+  const Shape& shape_of(const FaceRef& f, const std::vector<VehiclePose>& vehicles) const {
+    return f.instance == 0 ? world : *models[vehicles[f.instance - 1].model];
+  }
+  // Step that clears float rounding of a point at distance `t` along a ray
+  // whose origin is `o_local` away from the Embree origin.
+  static double step(double o_local, double t) { return std::max(1e-4, 4e-7 * (o_local + t)); }
+};
+
+// Builds per-face planes and an Embree scene from a meshkit scene.
+static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDevice device, const Vec3& origin,
+                        const std::function<std::uint16_t(const std::string&)>& material_index,
+                        std::uint32_t object_base) {
+  std::map<std::pair<std::size_t, std::uint32_t>, std::uint32_t> face_index;
+  for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
+    const auto& m = scene.meshes[mi];
+    const std::uint16_t mat = material_index(m.material);
+    std::vector<std::uint32_t> faces = m.triangle_face;
+    if (faces.size() != m.triangles.size()) faces = meshkit::group_planar_faces(m.vertices, m.triangles, 0);
+    const auto base = static_cast<std::uint32_t>(s.vertices.size());
+    s.vertices.insert(s.vertices.end(), m.vertices.begin(), m.vertices.end());
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const auto& tri = m.triangles[t];
+      s.triangles.push_back({tri[0] + base, tri[1] + base, tri[2] + base});
+      auto [it, inserted] = face_index.try_emplace({mi, faces[t]}, static_cast<std::uint32_t>(s.face_material.size()));
+      if (inserted) {
+        s.face_material.push_back(mat);
+        const std::uint32_t obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
+        s.face_object.push_back(object_base + obj);
+      }
+      s.tri_face.push_back(it->second);
+    }
+  }
+  // Planes: area-weighted normal through the area-weighted centroid.
+  const std::size_t nf = s.face_material.size();
+  std::vector<Vec3> nsum(nf, Vec3{0, 0, 0}), csum(nf, Vec3{0, 0, 0});
+  std::vector<double> asum(nf, 0);
+  for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    const auto& tri = s.triangles[t];
+    const Vec3 &a = s.vertices[tri[0]], &b = s.vertices[tri[1]], &c = s.vertices[tri[2]];
+    const Vec3 n2 = cross(b - a, c - a);
+    const double area2 = norm(n2);
+    const auto f = s.tri_face[t];
+    nsum[f] = nsum[f] + n2;
+    csum[f] = csum[f] + (area2 / 3.0) * (a + b + c);
+    asum[f] += area2;
+  }
+  s.face_plane.resize(nf);
+  s.face_flatness.assign(nf, 0);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const Vec3 n = normalize(nsum[f]);
+    const Vec3 c = asum[f] > 0 ? (1.0 / asum[f]) * csum[f] : Vec3{0, 0, 0};
+    s.face_plane[f] = Plane{n, dot(n, c)};
+  }
+  for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    const auto f = s.tri_face[t];
+    for (auto vi : s.triangles[t])
+      s.face_flatness[f] =
+          std::max(s.face_flatness[f], std::fabs(dot(s.face_plane[f].normal, s.vertices[vi]) - s.face_plane[f].offset));
+  }
+
+  s.scene = rtcNewScene(device);
+  rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_HIGH);
+  if (!s.triangles.empty()) {
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* vb = static_cast<float*>(
+        rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), s.vertices.size()));
+    for (std::size_t i = 0; i < s.vertices.size(); ++i)
+      for (int k = 0; k < 3; ++k) vb[3 * i + k] = static_cast<float>(s.vertices[i][k] - origin[k]);
+    auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                              3 * sizeof(unsigned), s.triangles.size()));
+    for (std::size_t i = 0; i < s.triangles.size(); ++i)
+      for (int k = 0; k < 3; ++k) ib[3 * i + k] = s.triangles[i][k];
+    rtcSetGeometryBuildQuality(g, RTC_BUILD_QUALITY_HIGH);
+    rtcCommitGeometry(g);
+    rtcAttachGeometryByID(s.scene, g, 0);
+    rtcReleaseGeometry(g);
+  }
+  rtcCommitScene(s.scene);
+  check_device(device, s.name.c_str());
+}
+
+TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_unique<Impl>()) {
+  auto& d = *impl_;
+  d.device = rtcNewDevice("verbose=0");
+  if (!d.device) throw std::runtime_error("cannot create an Embree device");
+  d.bounds = static_scene.bounds();
+  if (!d.bounds.empty())
+    for (int k = 0; k < 3; ++k) d.origin[k] = std::round(0.5 * (d.bounds.min[k] + d.bounds.max[k]));
+  for (const auto& o : static_scene.objects) d.static_objects.push_back(o.source_id);
+  if (d.static_objects.empty()) d.static_objects.push_back("static");
+  d.world.name = "static scene";
+  build_shape(d.world, static_scene, d.device, d.origin,
+              [this](const std::string& m) { return material_index(m); }, 0);
+  for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
+
+  d.top = rtcNewScene(d.device);
+  rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST));
+  rtcSetSceneBuildQuality(d.top, RTC_BUILD_QUALITY_LOW);
+  RTCGeometry inst = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
+  rtcSetGeometryInstancedScene(inst, d.world.scene);
+  const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+  rtcSetGeometryTransform(inst, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+  rtcCommitGeometry(inst);
+  rtcAttachGeometryByID(d.top, inst, 0);
+  rtcReleaseGeometry(inst);
+  rtcCommitScene(d.top);
+  check_device(d.device, "top-level scene");
+}
+
+TraceScene::~TraceScene() {
+  auto& d = *impl_;
+  for (auto g : d.slots) rtcReleaseGeometry(g);
+  if (d.top) rtcReleaseScene(d.top);
+  for (auto& m : d.models) rtcReleaseScene(m->scene);
+  if (d.world.scene) rtcReleaseScene(d.world.scene);
+  rtcReleaseDevice(d.device);
+}
+
+std::uint16_t TraceScene::material_index(const std::string& name) {
+  for (std::size_t i = 0; i < materials_.size(); ++i)
+    if (materials_[i] == name) return static_cast<std::uint16_t>(i);
+  materials_.push_back(name);
+  return static_cast<std::uint16_t>(materials_.size() - 1);
+}
+
+std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshkit::Scene& model,
+                                            const Vec3& antenna) {
+  auto& d = *impl_;
+  auto s = std::make_unique<Shape>();
+  s->name = "vehicle model " + name;
+  s->antenna = antenna;
+  build_shape(*s, model, d.device, Vec3{0, 0, 0}, [this](const std::string& m) { return material_index(m); }, 0);
+  d.models.push_back(std::move(s));
+  return static_cast<std::uint32_t>(d.models.size() - 1);
+}
+
+std::size_t TraceScene::model_count() const { return impl_->models.size(); }
+const std::string& TraceScene::model_name(std::uint32_t model) const { return impl_->models.at(model)->name; }
+
+void TraceScene::set_vehicles(const std::vector<VehiclePose>& vehicles) {
+  auto& d = *impl_;
+  for (const auto& v : vehicles)
+    if (v.model >= d.models.size()) throw std::invalid_argument("vehicle " + v.id + ": unknown model index");
+  vehicles_ = vehicles;
+  d.cos_yaw.resize(vehicles.size());
+  d.sin_yaw.resize(vehicles.size());
+  for (std::size_t i = 0; i < vehicles.size(); ++i) {
+    const auto& v = vehicles[i];
+    d.cos_yaw[i] = std::cos(v.yaw_rad);
+    d.sin_yaw[i] = std::sin(v.yaw_rad);
+    if (i >= d.slots.size()) {
+      RTCGeometry g = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
+      d.slots.push_back(g);
+      d.slot_enabled.push_back(true);
+      rtcAttachGeometryByID(d.top, g, static_cast<unsigned>(i + 1));
+    } else if (!d.slot_enabled[i]) {
+      rtcEnableGeometry(d.slots[i]);
+      d.slot_enabled[i] = true;
+    }
+    RTCGeometry g = d.slots[i];
+    rtcSetGeometryInstancedScene(g, d.models[v.model]->scene);
+    const float c = static_cast<float>(d.cos_yaw[i]), s = static_cast<float>(d.sin_yaw[i]);
+    const float xfm[12] = {c, s, 0, -s, c, 0, 0, 0, 1,
+                           static_cast<float>(v.position[0] - d.origin[0]),
+                           static_cast<float>(v.position[1] - d.origin[1]),
+                           static_cast<float>(v.position[2] - d.origin[2])};
+    rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, xfm);
+    rtcCommitGeometry(g);
+  }
+  for (std::size_t i = vehicles.size(); i < d.slots.size(); ++i)
+    if (d.slot_enabled[i]) {
+      rtcDisableGeometry(d.slots[i]);
+      d.slot_enabled[i] = false;
+    }
+  rtcCommitScene(d.top);
+  check_device(d.device, "vehicle update");
+}
+
+Vec3 TraceScene::vehicle_antenna(std::size_t v) const {
+  const auto& d = *impl_;
+  const Vec3& a = d.models[vehicles_[v].model]->antenna;
+  const double c = d.cos_yaw[v], s = d.sin_yaw[v];
+  return Vec3{c * a[0] - s * a[1], s * a[0] + c * a[1], a[2]} + vehicles_[v].position;
+}
+
+Vec3 TraceScene::vehicle_forward(std::size_t v) const { return Vec3{impl_->cos_yaw[v], impl_->sin_yaw[v], 0}; }
+
+bool TraceScene::closest_hit(const Vec3& origin, const Vec3& dir, double tnear, double tfar, Hit& hit,
+                             const FaceRef* skip) const {
+  const auto& d = *impl_;
+  const Vec3 o = origin - d.origin;
+  const double olen = norm(o);
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (int attempt = 0; attempt < 16; ++attempt) {
+    RTCRayHit rh;
+    rh.ray.org_x = static_cast<float>(o[0]);
+    rh.ray.org_y = static_cast<float>(o[1]);
+    rh.ray.org_z = static_cast<float>(o[2]);
+    rh.ray.dir_x = static_cast<float>(dir[0]);
+    rh.ray.dir_y = static_cast<float>(dir[1]);
+    rh.ray.dir_z = static_cast<float>(dir[2]);
+    rh.ray.tnear = static_cast<float>(tnear);
+    rh.ray.tfar = tfar > 3e38 ? std::numeric_limits<float>::infinity() : static_cast<float>(tfar);
+    rh.ray.time = 0;
+    rh.ray.mask = 0xFFFFFFFF;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = kNone;
+    rh.hit.instID[0] = kNone;
+    rtcIntersect1(d.top, &ctx, &rh);
+    if (rh.hit.geomID == kNone) return false;
+    const std::uint32_t inst = rh.hit.instID[0];
+    const Shape& s = inst == 0 ? d.world : *d.models[vehicles_[inst - 1].model];
+    hit.t = rh.ray.tfar;
+    hit.face = FaceRef{inst, s.tri_face[rh.hit.primID]};
+    if (skip && hit.face == *skip) {
+      tnear = hit.t + Impl::step(olen, hit.t);
+      continue;
+    }
+    return true;
+  }
+  return false;
+}
+
+bool TraceScene::all_hits(const Vec3& origin, const Vec3& dir, double tnear, double tfar, std::vector<Hit>& hits,
+                          std::size_t max_hits, const FaceRef* skip) const {
+  hits.clear();
+  const double olen = norm(origin - impl_->origin);
+  Hit h;
+  while (tnear < tfar && closest_hit(origin, dir, tnear, tfar, h, skip)) {
+    if (hits.size() >= max_hits) return false;
+    hits.push_back(h);
+    tnear = h.t + Impl::step(olen, h.t);
+  }
+  return true;
+}
+
+Plane TraceScene::plane(const FaceRef& f) const {
+  const auto& d = *impl_;
+  if (f.instance == 0) return d.world.face_plane[f.face];
+  const std::size_t v = f.instance - 1;
+  const Plane& p = d.models[vehicles_[v].model]->face_plane[f.face];
+  const double c = d.cos_yaw[v], s = d.sin_yaw[v];
+  const Vec3 n{c * p.normal[0] - s * p.normal[1], s * p.normal[0] + c * p.normal[1], p.normal[2]};
+  return Plane{n, p.offset + dot(n, vehicles_[v].position)};
+}
+
+std::uint16_t TraceScene::material(const FaceRef& f) const {
+  return impl_->shape_of(f, vehicles_).face_material[f.face];
+}
+
+std::uint32_t TraceScene::object(const FaceRef& f) const {
+  if (f.instance == 0) return impl_->world.face_object[f.face];
+  return vehicle_object(f.instance - 1);
+}
+
+double TraceScene::flatness(const FaceRef& f) const { return impl_->shape_of(f, vehicles_).face_flatness[f.face]; }
+
+Vec3 TraceScene::velocity(const FaceRef& f) const {
+  return f.instance == 0 ? Vec3{0, 0, 0} : vehicles_[f.instance - 1].velocity;
+}
+
+std::size_t TraceScene::face_count(std::uint32_t instance) const {
+  if (instance == 0) return impl_->world.face_plane.size();
+  return impl_->models[vehicles_.at(instance - 1).model]->face_plane.size();
+}
+
+std::vector<std::string> TraceScene::object_names() const {
+  std::vector<std::string> names = impl_->static_objects;
+  for (const auto& v : vehicles_) names.push_back("vehicle/" + v.id);
+  return names;
+}
+
+std::uint32_t TraceScene::static_object_count() const {
+  return static_cast<std::uint32_t>(impl_->static_objects.size());
+}
+
+meshkit::Bounds TraceScene::static_bounds() const { return impl_->bounds; }
+std::size_t TraceScene::static_triangle_count() const { return impl_->world.triangles.size(); }
+
+std::size_t TraceScene::shoot_raw(const Vec3& origin, const std::vector<Vec3>& directions, double tfar) const {
+  const auto& d = *impl_;
+  const Vec3 o = origin - d.origin;
+  return tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, directions.size(), 1024), std::size_t{0},
+      [&](const tbb::blocked_range<std::size_t>& r, std::size_t n) {
+        RTCIntersectContext ctx;
+        rtcInitIntersectContext(&ctx);
+        for (std::size_t i = r.begin(); i != r.end(); ++i) {
+          RTCRayHit rh;
+          rh.ray.org_x = static_cast<float>(o[0]);
+          rh.ray.org_y = static_cast<float>(o[1]);
+          rh.ray.org_z = static_cast<float>(o[2]);
+          rh.ray.dir_x = static_cast<float>(directions[i][0]);
+          rh.ray.dir_y = static_cast<float>(directions[i][1]);
+          rh.ray.dir_z = static_cast<float>(directions[i][2]);
+          rh.ray.tnear = 0;
+          rh.ray.tfar = static_cast<float>(tfar);
+          rh.ray.time = 0;
+          rh.ray.mask = 0xFFFFFFFF;
+          rh.ray.id = 0;
+          rh.ray.flags = 0;
+          rh.hit.geomID = kNone;
+          rh.hit.instID[0] = kNone;
+          rtcIntersect1(d.top, &ctx, &rh);
+          n += rh.hit.geomID != kNone;
+        }
+        return n;
+      },
+      std::plus<>());
+}
+
+}  // namespace raysweep::tracer

@@ -1,0 +1,118 @@
+// The scene the tracer shoots rays into. Static geometry (city, ground) is
+// one Embree scene built once; each vehicle model is its own Embree scene,
+// placed by instances whose transforms change per frame, so moving vehicles
+// re-commits only the small top-level scene (never the city BVH).
+//
+// Embree intersects in float relative to a local origin (the centre of the
+// static bounds), so coordinates far from zero keep their precision; every
+// quantity derived from a hit is recomputed in double from the planar face it
+// names (FaceRef), which is also what the image method reflects in.
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "meshkit/scene.hpp"
+#include "tracer/vec.hpp"
+
+namespace raysweep::tracer {
+
+// A planar face of a placed shape: instance 0 is the static scene, instance
+// v + 1 the vehicle v of the current frame. Faces group coplanar, connected
+// triangles (meshkit planar face ids), so a wall split into triangles is one
+// reflector and a ray through a shared edge names one face.
+struct FaceRef {
+  std::uint32_t instance = 0;
+  std::uint32_t face = 0;
+  auto operator<=>(const FaceRef&) const = default;
+};
+
+struct Plane {
+  Vec3 normal{0, 0, 1};  // unit
+  double offset = 0;     // normal . x = offset
+};
+
+struct Hit {
+  double t = 0;  // distance along the (unit) ray direction
+  FaceRef face;
+};
+
+// Where a vehicle is in the current frame.
+struct VehiclePose {
+  std::string id;
+  std::uint32_t model = 0;      // index returned by add_vehicle_model
+  Vec3 position{0, 0, 0};       // front-bumper centre on the ground (SUMO's FCD point)
+  double yaw_rad = 0;           // direction of the front, counter-clockwise from +x
+  Vec3 velocity{0, 0, 0};       // m/s
+};
+
+class TraceScene {
+ public:
+  // Static geometry: every mesh's triangles with their material, object and
+  // planar-face ids. Object names come from scene.objects (source_id).
+  explicit TraceScene(const meshkit::Scene& static_scene);
+  ~TraceScene();
+  TraceScene(const TraceScene&) = delete;
+  TraceScene& operator=(const TraceScene&) = delete;
+
+  // A vehicle model in the library frame (meshkit::to_scene output) with its
+  // antenna mount; returns the model index. Models are built once.
+  std::uint32_t add_vehicle_model(const std::string& name, const meshkit::Scene& model, const Vec3& antenna);
+  std::size_t model_count() const;
+  const std::string& model_name(std::uint32_t model) const;
+
+  // Places the vehicles of a frame: instance transforms + one top-level commit.
+  void set_vehicles(const std::vector<VehiclePose>& vehicles);
+  const std::vector<VehiclePose>& vehicles() const { return vehicles_; }
+  // World position of vehicle v's antenna and its forward unit vector.
+  Vec3 vehicle_antenna(std::size_t v) const;
+  Vec3 vehicle_forward(std::size_t v) const;
+
+  // Closest hit along origin + t dir, t in (tnear, tfar); dir unit. A hit on
+  // `skip` (the face a ray leaves) is stepped over. False when nothing is hit.
+  bool closest_hit(const Vec3& origin, const Vec3& dir, double tnear, double tfar, Hit& hit,
+                   const FaceRef* skip = nullptr) const;
+  // Every face crossed by origin + t dir for t in (tnear, tfar), sorted by t;
+  // each face at most once per crossing. Stops after `max_hits` hits
+  // (returns false then).
+  bool all_hits(const Vec3& origin, const Vec3& dir, double tnear, double tfar, std::vector<Hit>& hits,
+                std::size_t max_hits, const FaceRef* skip = nullptr) const;
+
+  // Face data in world coordinates (double precision).
+  Plane plane(const FaceRef& f) const;
+  std::uint16_t material(const FaceRef& f) const;
+  std::uint32_t object(const FaceRef& f) const;  // index into object_names()
+  // Max distance of the face's vertices from its plane (bent "planar" faces).
+  double flatness(const FaceRef& f) const;
+  bool is_vehicle(const FaceRef& f) const { return f.instance > 0; }
+  Vec3 velocity(const FaceRef& f) const;  // of the surface point (vehicle translation)
+  std::size_t face_count(std::uint32_t instance) const;
+
+  // Tables the path records index: materials by name ("concrete", "glass"...),
+  // objects: static objects first ("way/123", "ground"), then one per vehicle
+  // of the current frame ("vehicle/<id>").
+  const std::vector<std::string>& material_names() const { return materials_; }
+  std::vector<std::string> object_names() const;
+  std::uint32_t static_object_count() const;
+  std::uint32_t vehicle_object(std::size_t v) const { return static_object_count() + static_cast<std::uint32_t>(v); }
+
+  meshkit::Bounds static_bounds() const;
+  std::size_t static_triangle_count() const;
+  // Shoots `directions.size()` rays from `origin` (closest hit), for measuring
+  // Embree's raw throughput on this scene; returns how many hit.
+  std::size_t shoot_raw(const Vec3& origin, const std::vector<Vec3>& directions, double tfar) const;
+
+  struct Shape;  // geometry of one Embree scene (static or a vehicle model)
+
+ private:
+  std::uint16_t material_index(const std::string& name);
+
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  std::vector<std::string> materials_;
+  std::vector<VehiclePose> vehicles_;
+};
+
+}  // namespace raysweep::tracer

@@ -1,0 +1,36 @@
+// Small double-precision vector helpers for path geometry. Embree works in
+// float; every quantity a user sees (lengths, delays, angles) is computed here
+// in double so single precision never costs centimetres.
+#pragma once
+
+#include <cmath>
+
+#include "meshkit/scene.hpp"
+
+namespace raysweep::tracer {
+
+using meshkit::Vec3;
+
+inline Vec3 operator+(const Vec3& a, const Vec3& b) { return {a[0] + b[0], a[1] + b[1], a[2] + b[2]}; }
+inline Vec3 operator-(const Vec3& a, const Vec3& b) { return {a[0] - b[0], a[1] - b[1], a[2] - b[2]}; }
+inline Vec3 operator-(const Vec3& a) { return {-a[0], -a[1], -a[2]}; }
+inline Vec3 operator*(double s, const Vec3& a) { return {s * a[0], s * a[1], s * a[2]}; }
+inline double dot(const Vec3& a, const Vec3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+inline Vec3 cross(const Vec3& a, const Vec3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+inline double norm(const Vec3& a) { return std::sqrt(dot(a, a)); }
+inline Vec3 normalize(const Vec3& a) {
+  const double n = norm(a);
+  return n > 0 ? (1.0 / n) * a : Vec3{0, 0, 0};
+}
+// Any unit vector perpendicular to unit `a` (deterministic).
+inline Vec3 any_perpendicular(const Vec3& a) {
+  const Vec3 helper = std::fabs(a[0]) < 0.9 ? Vec3{1, 0, 0} : Vec3{0, 1, 0};
+  return normalize(cross(a, helper));
+}
+// Spherical angles of a unit direction: theta from +z, phi from +x towards +y.
+inline double zenith(const Vec3& d) { return std::acos(std::fmax(-1.0, std::fmin(1.0, d[2]))); }
+inline double azimuth(const Vec3& d) { return std::atan2(d[1], d[0]); }
+
+}  // namespace raysweep::tracer
