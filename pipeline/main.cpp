@@ -81,13 +81,13 @@ int main(int argc, char** argv) {
   std::string poses_net, poses_out, poses_mix = "passenger";
   int poses_count = 10;
   std::uint64_t poses_seed = 1;
-  double poses_gap = 8.0;
+  double poses_gap = 6.0;
   auto* pc = app.add_subcommand("poses", "place vehicles along a SUMO network's lanes (a poses CSV for `trace`)");
   pc->add_option("--net", poses_net, "SUMO network (.net.xml[.gz])")->required();
   pc->add_option("--count", poses_count, "number of vehicles")->check(CLI::PositiveNumber);
   pc->add_option("--seed", poses_seed, "random seed (same seed, same poses)");
   pc->add_option("--classes", poses_mix, "class mix, e.g. passenger:8,truck:1,bus:1");
-  pc->add_option("--min-gap", poses_gap, "minimum distance between front points (m)");
+  pc->add_option("--min-gap", poses_gap, "spacing that sets the footprint margin (m)");
   pc->add_option("--out", poses_out, "output CSV")->required();
 
   CLI11_PARSE(app, argc, argv);

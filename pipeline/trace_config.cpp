@@ -64,7 +64,6 @@ TraceSettings load_trace_config(const std::string& path) {
       else if (key == "reception_radius_factor") t.reception_radius_factor = number(path, full, node);
       else if (key == "max_transmissions") t.max_transmissions = integer(path, full, node);
       else if (key == "sbr_transmission_loss_db") t.sbr_transmission_loss_db = number(path, full, node);
-      else if (key == "sbr_max_transmissions") t.sbr_max_transmissions = integer(path, full, node);
       else if (key == "candidates") {
         const std::string v = text(path, full, node);
         if (v == "sbr") t.candidates = tracer::CandidateSearch::sbr;
@@ -130,8 +129,7 @@ nlohmann::json TraceSettings::to_json() const {
             {"reception_radius_factor", tracer.reception_radius_factor},
             {"candidates", tracer.candidates == tracer::CandidateSearch::sbr ? "sbr" : "exhaustive"},
             {"max_transmissions", tracer.max_transmissions},
-            {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db},
-            {"sbr_max_transmissions", tracer.sbr_max_transmissions}}},
+            {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db}}},
           {"materials", materials}};
 }
 

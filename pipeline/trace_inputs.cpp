@@ -2,6 +2,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -177,6 +179,41 @@ void place_vehicles(tracer::TraceScene& scene, VehicleLibrary& library, const st
   scene.set_vehicles(placed);
 }
 
+namespace {
+
+// Footprint of a vehicle in the ground plane: front point, unit heading, size.
+struct Footprint {
+  double x, y, ux, uy, length, width;
+  std::array<std::array<double, 2>, 4> corners() const {
+    const double px = -uy * width / 2, py = ux * width / 2;
+    const double bx = x - ux * length, by = y - uy * length;
+    return {{{x + px, y + py}, {x - px, y - py}, {bx - px, by - py}, {bx + px, by + py}}};
+  }
+};
+
+// Separating-axis test on the two rectangles grown by `margin`.
+bool overlap(const Footprint& a, const Footprint& b, double margin) {
+  const auto ca = a.corners(), cb = b.corners();
+  const std::array<std::array<double, 2>, 4> axes = {{{a.ux, a.uy}, {-a.uy, a.ux}, {b.ux, b.uy}, {-b.uy, b.ux}}};
+  for (const auto& ax : axes) {
+    double amin = 1e300, amax = -1e300, bmin = 1e300, bmax = -1e300;
+    for (const auto& c : ca) {
+      const double p = c[0] * ax[0] + c[1] * ax[1];
+      amin = std::min(amin, p);
+      amax = std::max(amax, p);
+    }
+    for (const auto& c : cb) {
+      const double p = c[0] * ax[0] + c[1] * ax[1];
+      bmin = std::min(bmin, p);
+      bmax = std::max(bmax, p);
+    }
+    if (amax + margin < bmin || bmax + margin < amin) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 std::vector<PoseRow> place_on_lanes(const meshkit::SumoNetwork& net, int count, std::uint64_t seed,
                                     const std::map<std::string, double>& class_mix, double min_gap_m) {
   struct Segment {
@@ -197,6 +234,7 @@ std::vector<PoseRow> place_on_lanes(const meshkit::SumoNetwork& net, int count, 
   if (segments.empty()) throw std::invalid_argument(net.path + ": the network has no lanes to place vehicles on");
   double weight_sum = 0;
   for (const auto& [c, w] : class_mix) {
+    if (!meshkit::find_vehicle_class(c)) throw std::invalid_argument("unknown vehicle class '" + c + "'");
     if (!(w >= 0)) throw std::invalid_argument("class weight for '" + c + "' must be >= 0");
     weight_sum += w;
   }
@@ -204,18 +242,17 @@ std::vector<PoseRow> place_on_lanes(const meshkit::SumoNetwork& net, int count, 
   std::mt19937_64 rng(seed);
   auto uniform = [&rng] { return static_cast<double>(rng() >> 11) * 0x1.0p-53; };
   std::vector<PoseRow> rows;
-  for (int attempt = 0; static_cast<int>(rows.size()) < count; ++attempt) {
-    if (attempt > 1000 * count)
-      throw std::invalid_argument(net.path + ": cannot place " + std::to_string(count) + " vehicles " +
-                                  std::to_string(min_gap_m) + " m apart on " + std::to_string(total) + " m of lanes");
-    const double s = uniform() * total;
-    const auto k = static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), s) - cumulative.begin());
-    const auto& seg = segments[std::min(k, segments.size() - 1)];
-    const double along = uniform();
-    const double x = seg.a[0] + along * (seg.b[0] - seg.a[0]);
-    const double y = seg.a[1] + along * (seg.b[1] - seg.a[1]);
-    bool clear = true;
-    for (const auto& r : rows) clear = clear && std::hypot(r.x - x, r.y - y) >= min_gap_m;
+  std::vector<Footprint> placed;
+  // Stratified along the lanes (even spacing, jittered), so dense snapshots
+  // fill the network instead of jamming early; then random retries.
+  const double spacing = total / count;
+  const double margin = std::max(0.0, min_gap_m - 5.0) / 2 + 0.25;
+  for (int k = 0, attempt = 0; static_cast<int>(rows.size()) < count; ++attempt) {
+    if (attempt > 200 * count)
+      throw std::invalid_argument(net.path + ": cannot place " + std::to_string(count) + " vehicles without overlap on " +
+                                  std::to_string(total) + " m of lanes (placed " + std::to_string(rows.size()) + ")");
+    const double s = k < count ? (k + 0.5 + 0.4 * (uniform() - 0.5)) * spacing : uniform() * total;
+    ++k;
     double pick = uniform() * weight_sum;
     std::string vclass = class_mix.begin()->first;
     for (const auto& [c, w] : class_mix) {
@@ -226,13 +263,23 @@ std::vector<PoseRow> place_on_lanes(const meshkit::SumoNetwork& net, int count, 
       pick -= w;
     }
     const double speed = 5 + 10 * uniform();
+    const auto idx = static_cast<std::size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), s) - cumulative.begin());
+    const auto& seg = segments[std::min(idx, segments.size() - 1)];
+    const double along = std::clamp(1.0 - (cumulative[std::min(idx, segments.size() - 1)] - s) / seg.len, 0.0, 1.0);
+    const double ux = (seg.b[0] - seg.a[0]) / seg.len, uy = (seg.b[1] - seg.a[1]) / seg.len;
+    const auto& dims = meshkit::find_vehicle_class(vclass)->dims;
+    const Footprint f{seg.a[0] + along * (seg.b[0] - seg.a[0]), seg.a[1] + along * (seg.b[1] - seg.a[1]), ux, uy,
+                      dims.length, dims.width};
+    bool clear = true;
+    for (const auto& o : placed) clear = clear && !overlap(f, o, margin);
     if (!clear) continue;
+    placed.push_back(f);
     PoseRow r;
     r.id = "veh" + std::to_string(rows.size());
     r.vclass = vclass;
-    r.x = x;
-    r.y = y;
-    r.heading_deg = std::fmod(std::atan2(seg.b[0] - seg.a[0], seg.b[1] - seg.a[1]) * 180 / M_PI + 360, 360);
+    r.x = f.x;
+    r.y = f.y;
+    r.heading_deg = std::fmod(std::atan2(ux, uy) * 180 / M_PI + 360, 360);
     r.speed_mps = speed;
     rows.push_back(r);
   }

@@ -57,12 +57,13 @@ class VehicleLibrary {
 // Adds the models the poses need to `scene` and places the vehicles.
 void place_vehicles(tracer::TraceScene& scene, VehicleLibrary& library, const std::vector<PoseRow>& poses);
 
-// `count` vehicles on the network's lanes: lanes drawn by length, positions
-// uniform along them, front points at least `min_gap_m` apart, classes drawn
+// `count` vehicles on the network's lanes: evenly spaced along the total lane
+// length with a random jitter (random positions when a slot is taken), no
+// two footprints closer than (min_gap_m - 5 m) / 2 + 0.25 m, classes drawn
 // from `class_mix` (name -> weight), speeds uniform in [5, 15] m/s. The same
 // seed gives the same poses.
 std::vector<PoseRow> place_on_lanes(const meshkit::SumoNetwork& net, int count, std::uint64_t seed,
                                     const std::map<std::string, double>& class_mix = {{"passenger", 1.0}},
-                                    double min_gap_m = 8.0);
+                                    double min_gap_m = 6.0);
 
 }  // namespace raysweep::pipeline

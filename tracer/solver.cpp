@@ -65,7 +65,7 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (t.rays_per_source < 1) bad("tracer.rays_per_source must be at least 1");
   if (!(t.reception_radius_factor > 0)) bad("tracer.reception_radius_factor must be positive");
   if (t.max_transmissions < 0) bad("tracer.max_transmissions must be >= 0");
-  if (t.sbr_max_transmissions < 0) bad("tracer.sbr_max_transmissions must be >= 0");
+  if (!(t.sbr_transmission_loss_db >= 0)) bad("tracer.sbr_transmission_loss_db must be >= 0");
 }
 
 Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const RadioConfig& radio,
@@ -76,7 +76,8 @@ Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const 
     materials_.push_back(radio_material(name, radio.frequency_hz, it == overrides.end() ? MaterialOverride{} : it->second));
     const auto c = slab_coefficients(materials_.back(), 1.0);
     const double t = std::max(std::abs(c.t.te), std::abs(c.t.tm));
-    normal_loss_db_.push_back(t > 0 ? -20 * std::log10(t) : 1e9);
+    opaque_.push_back(t < 1e-12);
+    normal_loss_db_.push_back(t > 0 ? -20 * std::log10(t) : 1e300);
   }
 }
 
@@ -267,6 +268,13 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
     Sequence seq;
   };
   std::vector<State> stack;
+  std::vector<double> nx(nodes.size()), ny(nodes.size()), nz(nodes.size());
+  for (std::size_t j = 0; j < nodes.size(); ++j) {
+    nx[j] = nodes[j].position[0];
+    ny[j] = nodes[j].position[1];
+    nz[j] = nodes[j].position[2];
+  }
+  std::vector<unsigned char> inside(nodes.size());
   std::unordered_set<CandidateKey, CandidateHash> seen;
   CandidateKey key;
   for (std::size_t r = begin; r < end; ++r) {
@@ -280,13 +288,16 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       ++rays;
       const double tseg = got ? hit.t : std::numeric_limits<double>::infinity();
       if (st.seq.n > 0) {
-        for (std::uint32_t j = 0; j < nodes.size(); ++j) {
-          if (j == src) continue;
-          const Vec3 w = nodes[j].position - st.o;
-          const double s = dot(w, st.d);
-          if (s <= 0 || s > tseg) continue;
+        // Branch-free pass over all nodes first (vectorises), keys only for hits.
+        const std::size_t nn = nodes.size();
+        for (std::size_t j = 0; j < nn; ++j) {
+          const double wx = nx[j] - st.o[0], wy = ny[j] - st.o[1], wz = nz[j] - st.o[2];
+          const double s = wx * st.d[0] + wy * st.d[1] + wz * st.d[2];
           const double r = spacing * (st.len + s);
-          if (dot(w, w) - s * s > r * r) continue;
+          inside[j] = (s > 0) & (s <= tseg) & (wx * wx + wy * wy + wz * wz - s * s <= r * r);
+        }
+        for (std::uint32_t j = 0; j < nn; ++j) {
+          if (!inside[j] || j == src) continue;
           key.other = j;
           key.faces.assign(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n);
           if (seen.insert(key).second) out.push_back(key);
@@ -295,7 +306,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       if (!got) continue;
       const Vec3 p = st.o + hit.t * st.d;
       const auto mat = scene.material(hit.face);
-      if (cfg.refraction && st.transmissions < cfg.sbr_max_transmissions) {
+      if (cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat)) {
         const double loss = st.loss_db + em.normal_transmission_loss_db(mat);
         if (loss <= cfg.sbr_transmission_loss_db)
           stack.push_back(State{p, st.d, st.len + hit.t, st.transmissions + 1, loss, true, hit.face, st.seq});

@@ -64,7 +64,9 @@ class Electromagnetics {
                    const std::map<std::string, MaterialOverride>& overrides);
   const RadioMaterial& material(std::uint16_t i) const { return materials_.at(i); }
   SlabCoefficients coefficients(std::uint16_t i, double cos_theta) const;
-  // Loss of the strongest polarisation through the slab at normal incidence (dB, >= 0).
+  // Half spaces and good conductors: nothing gets through.
+  bool opaque(std::uint16_t i) const { return opaque_.at(i); }
+  // Loss of the stronger polarisation through the slab at normal incidence (dB).
   double normal_transmission_loss_db(std::uint16_t i) const { return normal_loss_db_.at(i); }
   double wavelength() const { return kSpeedOfLight / radio_.frequency_hz; }
   const RadioConfig& radio() const { return radio_; }
@@ -72,6 +74,7 @@ class Electromagnetics {
  private:
   RadioConfig radio_;
   std::vector<RadioMaterial> materials_;
+  std::vector<bool> opaque_;
   std::vector<double> normal_loss_db_;
 };
 
