@@ -1,0 +1,341 @@
+// Tracer benchmark: what one traced snapshot costs, and what it is made of.
+//
+// Two scenes, each loaded once per process:
+//   demo     - the demo city (datasets/demo/kirchberg.osm + kirchberg.net.xml)
+//              through the whole `raysweep scene` stage (default config, into
+//              a temp dir), read back from scene.glb; lanes from kirchberg.net.xml.
+//   van3twin - VaN3Twin's Sionna ring road (SionnaCircleScenario/scene.xml via
+//              read_mitsuba) without Sionna's placeholder car boxes (objects
+//              whose id matches `car_`, as `raysweep trace --exclude-objects`
+//              would drop them); lanes from sumo_files_v2v_map/map.net.xml.
+//              Skipped (SkipWithError) when ../shared/data is absent.
+//
+// Benchmarks:
+//   BM_SceneBuild/<scene>        TraceScene construction (static Embree BVH,
+//                                planar faces): paid once per scene, not per frame.
+//   BM_VehicleUpdate/<scene>/N   TraceScene::set_vehicles alone for N vehicles
+//                                whose positions move a little every iteration
+//                                (instance transforms + top-level re-commit).
+//   BM_EmbreeRaw/<scene>         Embree's raw closest-hit throughput
+//                                (TraceScene::shoot_raw, 2^20 Fibonacci
+//                                directions, tfar 1e4 m) from 1.5 m above the
+//                                first of 60 placed vehicles: an upper bound on
+//                                the ray rate the solver can reach.
+//   BM_Snapshot/<scene>/N        trace_snapshot for N vehicles (N = 5 ... 120)
+//                                with the default TracerConfig (depth 3, LoS +
+//                                specular + refraction, 4096 rays per source)
+//                                and default RadioConfig (5.9 GHz). Poses come
+//                                from place_on_lanes(net, N, seed 1,
+//                                passenger:truck:bus = 8:1:1); when that mix does
+//                                not fit, passenger cars only (counter
+//                                passenger_only = 1 and the label say which).
+//                                Scene, models and poses are set up outside the
+//                                timed loop. Counters: pairs, rays (Embree
+//                                queries per snapshot), paths, candidates, the
+//                                LOS / NLOSV / NLOS pair counts, pairs without
+//                                any path, and pairs_per_s / rays_per_s over
+//                                wall-clock time.
+// Everything runs on TBB's threads, so all timings are wall-clock (UseRealTime).
+//
+// Run (medians of 5 repetitions):
+//   ./build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+// One group only, e.g.: --benchmark_filter='BM_Snapshot/demo/'
+#include <benchmark/benchmark.h>
+#include <spdlog/spdlog.h>
+
+#include <cstdint>
+#include <exception>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <regex>
+#include <string>
+#include <vector>
+
+#include "meshkit/gltf_io.hpp"
+#include "meshkit/mitsuba_io.hpp"
+#include "meshkit/sumo_net.hpp"
+#include "pipeline/scene_stage.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "tracer/tracer.hpp"
+
+namespace fs = std::filesystem;
+using namespace raysweep;
+
+namespace {
+
+const fs::path kVan3twin = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin/DriveX-devs_VaN3Twin/src";
+
+// The static scene without the objects whose source_id matches `pattern`
+// (the same rule as `raysweep trace --exclude-objects`). Returns how many
+// objects were dropped through `dropped`.
+meshkit::Scene without_objects(const meshkit::Scene& in, const std::string& pattern, std::size_t& dropped) {
+  const std::regex re(pattern);
+  std::vector<char> drop(in.objects.size(), 0);
+  dropped = 0;
+  for (std::size_t i = 0; i < in.objects.size(); ++i)
+    if (std::regex_search(in.objects[i].source_id, re)) {
+      drop[i] = 1;
+      ++dropped;
+    }
+  meshkit::Scene out;
+  out.objects = in.objects;  // keep the indices the triangles refer to
+  for (const auto& m : in.meshes) {
+    meshkit::Mesh kept;
+    kept.name = m.name;
+    kept.material = m.material;
+    kept.vertices = m.vertices;  // unreferenced vertices are harmless
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const std::uint32_t obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
+      if (obj < drop.size() && drop[obj]) continue;
+      kept.triangles.push_back(m.triangles[t]);
+      kept.triangle_object.push_back(obj);
+      if (t < m.triangle_face.size()) kept.triangle_face.push_back(m.triangle_face[t]);
+    }
+    if (!kept.triangles.empty()) out.meshes.push_back(std::move(kept));
+  }
+  return out;
+}
+
+struct Placement {
+  std::vector<pipeline::PoseRow> poses;
+  bool passenger_only = false;
+  std::string error;  // non-empty: neither mix could be placed
+};
+
+// One scene with everything derived from it, built on first use.
+struct SceneCase {
+  std::string error;  // non-empty: benchmarks on this scene skip with it
+  meshkit::Scene static_scene;
+  meshkit::SumoNetwork net;
+  std::size_t excluded_objects = 0;
+  std::unique_ptr<tracer::TraceScene> trace;  // shared by the benchmarks; each places its own vehicles
+  pipeline::VehicleLibrary library;           // built-in parametric models
+  std::map<int, Placement> placements;
+};
+
+std::unique_ptr<SceneCase> load_demo() {
+  auto c = std::make_unique<SceneCase>();
+  const fs::path d = fs::path(RAYSWEEP_SOURCE_DIR) / "datasets/demo";
+  const fs::path out = fs::temp_directory_path() / "raysweep-bench-tracer-demo";
+  try {
+    fs::remove_all(out);
+    pipeline::SceneArgs args;
+    args.osm = (d / "kirchberg.osm").string();
+    args.net = (d / "kirchberg.net.xml").string();
+    args.out = out.string();
+    args.preview = false;
+    pipeline::run_scene_stage(args, {"bench_tracer"});
+    c->static_scene = meshkit::read_glb((out / "scene.glb").string());
+    c->net = meshkit::read_sumo_network(args.net);
+  } catch (const std::exception& e) {
+    c->error = std::string("demo scene: ") + e.what();
+  }
+  std::error_code ec;
+  fs::remove_all(out, ec);
+  return c;
+}
+
+std::unique_ptr<SceneCase> load_van3twin() {
+  auto c = std::make_unique<SceneCase>();
+  const fs::path xml = kVan3twin / "sionna/scenarios/SionnaCircleScenario/scene.xml";
+  const fs::path net = kVan3twin / "automotive/examples/sumo_files_v2v_map/map.net.xml";
+  if (!fs::exists(xml) || !fs::exists(net)) {
+    c->error = "input absent (../shared/data not present)";
+    return c;
+  }
+  try {
+    c->static_scene = without_objects(meshkit::read_mitsuba(xml.string()), "car_", c->excluded_objects);
+    c->net = meshkit::read_sumo_network(net.string());
+  } catch (const std::exception& e) {
+    c->error = std::string("van3twin scene: ") + e.what();
+  }
+  return c;
+}
+
+SceneCase& scene_case(const std::string& name) {
+  static std::map<std::string, std::unique_ptr<SceneCase>> cache;
+  auto it = cache.find(name);
+  if (it == cache.end()) it = cache.emplace(name, name == "demo" ? load_demo() : load_van3twin()).first;
+  return *it->second;
+}
+
+// The scene's TraceScene (built once) or nullptr after SkipWithError.
+tracer::TraceScene* trace_scene(benchmark::State& state, SceneCase& c) {
+  if (!c.error.empty()) {
+    state.SkipWithError(c.error.c_str());
+    return nullptr;
+  }
+  if (!c.trace) {
+    try {
+      c.trace = std::make_unique<tracer::TraceScene>(c.static_scene);
+    } catch (const std::exception& e) {
+      c.error = std::string("TraceScene: ") + e.what();
+      state.SkipWithError(c.error.c_str());
+      return nullptr;
+    }
+  }
+  return c.trace.get();
+}
+
+const Placement& placement(SceneCase& c, int n) {
+  auto it = c.placements.find(n);
+  if (it != c.placements.end()) return it->second;
+  Placement p;
+  try {
+    p.poses = pipeline::place_on_lanes(c.net, n, 1, {{"passenger", 8}, {"truck", 1}, {"bus", 1}});
+  } catch (const std::invalid_argument&) {
+    try {
+      p.poses = pipeline::place_on_lanes(c.net, n, 1, {{"passenger", 1}});
+      p.passenger_only = true;
+    } catch (const std::invalid_argument& e) {
+      p.error = e.what();
+    }
+  }
+  return c.placements.emplace(n, std::move(p)).first->second;
+}
+
+// Scene with `n` vehicles placed, or nullptr after SkipWithError.
+tracer::TraceScene* scene_with_vehicles(benchmark::State& state, const std::string& name, int n,
+                                        const Placement** used = nullptr) {
+  SceneCase& c = scene_case(name);
+  tracer::TraceScene* scene = trace_scene(state, c);
+  if (!scene) return nullptr;
+  const Placement& p = placement(c, n);
+  if (!p.error.empty()) {
+    state.SkipWithError(p.error.c_str());
+    return nullptr;
+  }
+  try {
+    pipeline::place_vehicles(*scene, c.library, p.poses);
+  } catch (const std::exception& e) {
+    state.SkipWithError(e.what());
+    return nullptr;
+  }
+  if (used) *used = &p;
+  return scene;
+}
+
+void BM_SceneBuild(benchmark::State& state, const std::string& name) {
+  SceneCase& c = scene_case(name);
+  if (!c.error.empty()) {
+    state.SkipWithError(c.error.c_str());
+    return;
+  }
+  std::unique_ptr<tracer::TraceScene> built;
+  for (auto _ : state) {
+    state.PauseTiming();
+    built.reset();  // releasing the previous one is not part of the build
+    state.ResumeTiming();
+    built = std::make_unique<tracer::TraceScene>(c.static_scene);
+  }
+  state.counters["triangles"] = static_cast<double>(built ? built->static_triangle_count() : 0);
+  state.counters["objects"] = static_cast<double>(c.static_scene.objects.size());
+  state.counters["excluded_objects"] = static_cast<double>(c.excluded_objects);
+}
+
+void BM_VehicleUpdate(benchmark::State& state, const std::string& name) {
+  const int n = static_cast<int>(state.range(0));
+  tracer::TraceScene* scene = scene_with_vehicles(state, name, n);
+  if (!scene) return;
+  // Frames 10 ms apart: every vehicle moves by velocity * dt each frame.
+  constexpr int kFrames = 16;
+  std::vector<std::vector<tracer::VehiclePose>> frames(kFrames, scene->vehicles());
+  for (int f = 0; f < kFrames; ++f)
+    for (auto& v : frames[f]) v.position = v.position + (0.01 * f) * v.velocity;
+  std::size_t f = 0;
+  for (auto _ : state) {
+    scene->set_vehicles(frames[f]);
+    f = (f + 1) % kFrames;
+  }
+  state.counters["vehicles"] = n;
+}
+
+void BM_EmbreeRaw(benchmark::State& state, const std::string& name) {
+  tracer::TraceScene* scene = scene_with_vehicles(state, name, 60);
+  if (!scene) return;
+  static const std::vector<tracer::Vec3> dirs = tracer::fibonacci_sphere(1 << 20);
+  const tracer::Vec3 origin = scene->vehicles().front().position + tracer::Vec3{0, 0, 1.5};
+  std::size_t hits = 0;
+  for (auto _ : state) {
+    hits = scene->shoot_raw(origin, dirs, 1e4);
+    benchmark::DoNotOptimize(hits);
+  }
+  state.counters["rays"] = static_cast<double>(dirs.size());
+  state.counters["rays_per_s"] =
+      benchmark::Counter(static_cast<double>(dirs.size()), benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["hit_fraction"] = static_cast<double>(hits) / static_cast<double>(dirs.size());
+}
+
+void BM_Snapshot(benchmark::State& state, const std::string& name) {
+  const int n = static_cast<int>(state.range(0));
+  const Placement* used = nullptr;
+  tracer::TraceScene* scene = scene_with_vehicles(state, name, n, &used);
+  if (!scene) return;
+  const auto nodes = tracer::vehicle_nodes(*scene);
+  const tracer::TracerConfig cfg;
+  const tracer::RadioConfig radio;
+  tracer::Snapshot snap;
+  for (auto _ : state) {
+    snap = tracer::trace_snapshot(*scene, nodes, cfg, radio);
+    benchmark::DoNotOptimize(snap.pairs.data());
+  }
+  std::size_t los = 0, nlosv = 0, nlos = 0, no_path = 0;
+  for (const auto& p : snap.pairs) {
+    (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
+    no_path += p.paths.empty();
+  }
+  std::size_t trucks = 0, buses = 0;
+  for (const auto& p : used->poses) {
+    trucks += p.vclass == "truck";
+    buses += p.vclass == "bus";
+  }
+  const auto pairs = static_cast<double>(snap.pairs.size());
+  const auto rays = static_cast<double>(snap.stats.rays);
+  state.counters["pairs"] = pairs;
+  state.counters["pairs_per_s"] = benchmark::Counter(pairs, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["rays"] = rays;
+  state.counters["rays_per_s"] = benchmark::Counter(rays, benchmark::Counter::kIsIterationInvariantRate);
+  state.counters["paths"] = static_cast<double>(snap.stats.paths);
+  state.counters["candidates"] = static_cast<double>(snap.stats.candidates);
+  state.counters["dropped_cap"] = static_cast<double>(snap.stats.dropped_transmission_cap);
+  state.counters["LOS"] = static_cast<double>(los);
+  state.counters["NLOSV"] = static_cast<double>(nlosv);
+  state.counters["NLOS"] = static_cast<double>(nlos);
+  state.counters["no_path_pairs"] = static_cast<double>(no_path);
+  state.counters["passenger_only"] = used->passenger_only ? 1 : 0;
+  state.counters["trucks"] = static_cast<double>(trucks);
+  state.counters["buses"] = static_cast<double>(buses);
+  state.SetLabel(used->passenger_only ? "mix passenger" : "mix passenger:truck:bus 8:1:1");
+}
+
+void register_all() {
+  for (const std::string scene : {"demo", "van3twin"}) {
+    benchmark::RegisterBenchmark(("BM_SceneBuild/" + scene).c_str(), BM_SceneBuild, scene)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+    benchmark::RegisterBenchmark(("BM_VehicleUpdate/" + scene).c_str(), BM_VehicleUpdate, scene)
+        ->Arg(60)
+        ->Arg(120)
+        ->Unit(benchmark::kMicrosecond)
+        ->UseRealTime();
+    benchmark::RegisterBenchmark(("BM_EmbreeRaw/" + scene).c_str(), BM_EmbreeRaw, scene)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
+    auto* snap = benchmark::RegisterBenchmark(("BM_Snapshot/" + scene).c_str(), BM_Snapshot, scene);
+    for (int n : {5, 10, 20, 40, 60, 120}) snap->Arg(n);
+    snap->Unit(benchmark::kMillisecond)->UseRealTime();
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  spdlog::set_level(spdlog::level::err);
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  register_all();
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
