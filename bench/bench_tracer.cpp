@@ -41,6 +41,15 @@
 //   ./build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // One group only, e.g.: --benchmark_filter='BM_Snapshot/demo/'
 #include <benchmark/benchmark.h>
+// The pipeline logs through the shared libspdlog (its CMake target's usage
+// requirements, which reach this target only as a link dependency); without
+// these, spdlog::set_level here would set a header-only copy's level and the
+// scene stage would still log at info.
+#ifndef SPDLOG_COMPILED_LIB
+#define SPDLOG_SHARED_LIB
+#define SPDLOG_COMPILED_LIB
+#define SPDLOG_FMT_EXTERNAL
+#endif
 #include <spdlog/spdlog.h>
 
 #include <cstdint>
@@ -63,6 +72,10 @@ namespace fs = std::filesystem;
 using namespace raysweep;
 
 namespace {
+
+// tracer's Vec3 operators (Vec3 is std::array, so ADL does not find them).
+using tracer::operator+;
+using tracer::operator*;
 
 const fs::path kVan3twin = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin/DriveX-devs_VaN3Twin/src";
 
