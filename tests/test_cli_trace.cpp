@@ -1,0 +1,188 @@
+// `raysweep poses` and `raysweep trace` end to end on the demo city (and the
+// VaN3Twin ring road when ../shared is present): output fields, determinism,
+// provenance, the vehicle library, and bad input.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.hpp"
+
+using namespace raysweep::test;
+using nlohmann::json;
+
+namespace {
+
+fs::path demo_scene() {
+  static const fs::path dir = [] {
+    fs::path d = fs::temp_directory_path() / "raysweep-tests" / "cli_trace_demo_scene";
+    fs::remove_all(d);
+    const auto demo = source_dir() / "datasets/demo";
+    auto r = run_raysweep("-q scene --no-preview --osm " + (demo / "kirchberg.osm").string() + " --net " +
+                          (demo / "kirchberg.net.xml").string() + " --out " + d.string());
+    EXPECT_EQ(r.exit_code, 0) << r.output;
+    return d;
+  }();
+  return dir;
+}
+
+std::string demo_net() { return (source_dir() / "datasets/demo/kirchberg.net.xml").string(); }
+
+}  // namespace
+
+TEST(CliTrace, DemoSnapshotHasEveryPairWithDocumentedFields) {
+  auto dir = scratch_dir("trace");
+  auto r = run_raysweep("-q poses --net " + demo_net() + " --count 8 --seed 4 --classes passenger:3,bus:1 --out " +
+                        (dir / "poses.csv").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  write_text(dir / "nodes.csv", "id,x,y,z\nrsu1,150,60,6\n");
+  const std::string args = "-q trace --scene " + demo_scene().string() + " --poses " + (dir / "poses.csv").string() +
+                           " --nodes " + (dir / "nodes.csv").string();
+  r = run_raysweep(args + " --out " + (dir / "a.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json j = json::parse(read_text(dir / "a.json"));
+  ASSERT_EQ(j["pairs"].size(), 9u * 8u / 2u);
+  std::set<std::string> classes;
+  std::size_t paths = 0;
+  for (const auto& p : j["pairs"]) {
+    for (const char* key : {"tx", "rx", "los_class", "path_gain_db", "path_gain_incoherent_db", "delay_s", "n_paths",
+                            "paths", "blockers", "rms_delay_spread_s"})
+      ASSERT_TRUE(p.contains(key)) << key;
+    classes.insert(p["los_class"]);
+    EXPECT_EQ(p["n_paths"].get<std::size_t>(), p["paths"].size());
+    if (p["los_class"] == "LOS") EXPECT_TRUE(p["blockers"].empty());
+    else EXPECT_FALSE(p["blockers"].empty());
+    for (const auto& path : p["paths"]) {
+      for (const char* key : {"a_re", "a_im", "tau_s", "theta_t", "phi_t", "theta_r", "phi_r", "doppler_hz"})
+        ASSERT_TRUE(path[key].is_number()) << key;
+      for (const auto& i : path["interactions"]) {
+        EXPECT_TRUE(i["type"] == "specular" || i["type"] == "refraction") << i;
+        EXPECT_TRUE(i["object"].is_string());
+        EXPECT_TRUE(i["material"].is_string());
+      }
+      EXPECT_GE(path["tau_s"].get<double>(), p["delay_s"].get<double>());
+      ++paths;
+    }
+  }
+  EXPECT_GT(paths, j["pairs"].size());
+  EXPECT_TRUE(classes.count("LOS"));
+  EXPECT_TRUE(classes.count("NLOS"));
+  // Provenance names every input with its hash.
+  std::set<std::string> roles;
+  for (const auto& in : j["provenance"]["inputs"]) roles.insert(in["role"]);
+  EXPECT_TRUE(roles.count("scene") && roles.count("poses") && roles.count("nodes"));
+  // Same inputs, same numbers (the command line differs only in --out).
+  r = run_raysweep(args + " --out " + (dir / "b.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  json a = j, b = json::parse(read_text(dir / "b.json"));
+  a["provenance"].erase("command");
+  b["provenance"].erase("command");
+  EXPECT_EQ(a.dump(), b.dump());
+}
+
+TEST(CliTrace, UsesAVehicleLibraryFolder) {
+  auto dir = scratch_dir("lib");
+  write_text(dir / "v.toml", "[vehicles]\nclasses = [\"passenger\", \"bus\"]\n");
+  auto r = run_raysweep("-q vehicles --no-preview --config " + (dir / "v.toml").string() + " --out " +
+                        (dir / "lib").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  write_text(dir / "poses.csv",
+             "id,class,x,y,heading_deg,speed_mps\ncar1,passenger,120,40,90,10\nbus1,bus,140,40,90,8\n");
+  write_text(dir / "nodes.csv", "rsu,160,40,5\n");
+  for (const char* lod : {"0", "3"}) {
+    r = run_raysweep("-q trace --scene " + demo_scene().string() + " --vehicles " + (dir / "lib").string() +
+                     " --lod " + lod + " --poses " + (dir / "poses.csv").string() + " --nodes " +
+                     (dir / "nodes.csv").string() + " --out " + (dir / "t.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const json j = json::parse(read_text(dir / "t.json"));
+    EXPECT_EQ(j["pairs"].size(), 3u);
+    bool library_file = false;
+    for (const auto& in : j["provenance"]["inputs"]) library_file |= in["role"] == "vehicle_model";
+    EXPECT_TRUE(library_file);
+  }
+}
+
+TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
+  auto dir = scratch_dir("bad");
+  const auto out = dir / "t.json";
+  const std::string base = "-q trace --scene " + demo_scene().string() + " --out " + out.string();
+  write_text(dir / "nodes.csv", "a,100,40,2\nb,150,40,2\n");
+  const std::string nodes = " --nodes " + (dir / "nodes.csv").string();
+
+  write_text(dir / "poses.csv", "id,class,x,y,heading_deg,speed_mps\nv1,passenger,1,2,90,3\nv2,passenger,1,2,east,3\n");
+  auto r = run_raysweep(base + " --poses " + (dir / "poses.csv").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("poses.csv:3"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("heading_deg"), std::string::npos) << r.output;
+
+  write_text(dir / "poses.csv", "v1,spaceship,1,2,90,3\n");
+  r = run_raysweep(base + " --poses " + (dir / "poses.csv").string() + nodes);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("spaceship"), std::string::npos) << r.output;
+
+  write_text(dir / "c.toml", "[tracer]\nmax_dept = 3\n");
+  r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("tracer.max_dept"), std::string::npos) << r.output;
+
+  write_text(dir / "c.toml", "[radio]\nfrequency_hz = 28e9\n");
+  r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("ground"), std::string::npos) << r.output;  // ground types end at 10 GHz
+
+  write_text(dir / "c.toml", "[materials.concrete]\nthickness_m = \"thick\"\n");
+  r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("materials.concrete.thickness_m"), std::string::npos) << r.output;
+
+  r = run_raysweep("-q trace --scene " + demo_scene().string() + nodes + " --out " + (dir / "t.h5").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("HDF5"), std::string::npos) << r.output;
+
+  r = run_raysweep("-q trace --scene " + (dir / "nowhere").string() + nodes + " --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("scene.glb"), std::string::npos) << r.output;
+
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_FALSE(fs::exists(dir / "t.h5"));
+}
+
+TEST(CliTrace, PosesAreDeterministicAndOnTheLanes) {
+  auto dir = scratch_dir("poses");
+  for (const char* name : {"a.csv", "b.csv"}) {
+    auto r = run_raysweep("-q poses --net " + demo_net() + " --count 120 --seed 9 --out " + (dir / name).string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  EXPECT_EQ(read_text(dir / "a.csv"), read_text(dir / "b.csv"));
+  auto r = run_raysweep("-q poses --net " + demo_net() + " --count 5000 --out " + (dir / "c.csv").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("cannot place"), std::string::npos) << r.output;
+}
+
+TEST(CliTrace, Van3TwinRingRoadWithVehiclesOnItsLanes) {
+  const auto root = shared_data() / "van3twin/DriveX-devs_VaN3Twin/src";
+  const auto xml = root / "sionna/scenarios/SionnaCircleScenario/scene.xml";
+  const auto net = root / "automotive/examples/sumo_files_v2v_map/map.net.xml";
+  if (!fs::exists(xml) || !fs::exists(net)) GTEST_SKIP() << "../shared/data/van3twin absent";
+  auto dir = scratch_dir("ring");
+  auto r = run_raysweep("-q scene --no-preview --from-mitsuba " + xml.string() + " --out " + (dir / "scene").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_raysweep("-q poses --net " + net.string() + " --count 20 --seed 1 --out " + (dir / "poses.csv").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_raysweep("-q trace --scene " + (dir / "scene").string() + " --poses " + (dir / "poses.csv").string() +
+                   " --exclude-objects car_ --out " + (dir / "t.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json j = json::parse(read_text(dir / "t.json"));
+  EXPECT_EQ(j["pairs"].size(), 190u);
+  std::size_t paths = 0, building_hits = 0;
+  for (const auto& p : j["pairs"])
+    for (const auto& path : p["paths"]) {
+      ++paths;
+      for (const auto& i : path["interactions"]) {
+        const std::string obj = i["object"];
+        EXPECT_EQ(obj.find("car_"), std::string::npos) << "placeholder car left in the scene: " << obj;
+        building_hits += i["material"] == "brick";
+      }
+    }
+  EXPECT_GT(paths, 190u);
+  EXPECT_GT(building_hits, 0u);
+}
