@@ -257,3 +257,30 @@ TEST(TracerScene, InvalidInputsAreClearErrors) {
   EXPECT_THROW(tracer::trace_snapshot(scene, {node("a", {0, 0, 1}), node("b", {5, 0, 1})}, cfg, {}),
                std::invalid_argument);
 }
+
+TEST(TracerScene, RaysThroughSharedEdgesAndVerticesCrossOnce) {
+  // A closed box around the origin: a ray from inside aimed exactly at an
+  // edge or a corner (shared by two or three faces, split into triangles
+  // along diagonals) must cross the surface once: no leak, no double count.
+  meshkit::Scene s;
+  add_box_object(s, {-3, -2, -1}, {3, 2, 1}, "glass", "box");
+  tracer::TraceScene scene(s);
+  std::vector<tracer::Vec3> targets;
+  for (int i = 0; i < 8; ++i) targets.push_back({i & 1 ? 3.0 : -3.0, i & 2 ? 2.0 : -2.0, i & 4 ? 1.0 : -1.0});
+  for (double t = -0.95; t <= 0.95; t += 0.1) {
+    targets.push_back({3 * t, 2, 1});
+    targets.push_back({3, 2 * t, -1});
+    targets.push_back({-3, -2, t});
+    targets.push_back({3 * t, -2 * t, 1});  // face diagonals (triangle seams)
+    targets.push_back({3, 2 * t, t});
+  }
+  std::vector<tracer::Hit> hits;
+  for (const auto& target : targets) {
+    for (const tracer::Vec3 origin : {tracer::Vec3{0, 0, 0}, tracer::Vec3{0.3, -0.2, 0.1}}) {
+      const auto dir = tracer::normalize(target - origin);
+      ASSERT_TRUE(scene.all_hits(origin, dir, 0, 100, hits, 16));
+      EXPECT_EQ(hits.size(), 1u) << "towards " << target[0] << "," << target[1] << "," << target[2];
+      if (!hits.empty()) EXPECT_NEAR(hits[0].t, tracer::norm(target - origin), 1e-4);
+    }
+  }
+}
