@@ -77,6 +77,7 @@ int main(int argc, char** argv) {
   tc->add_option("--lod", trace.lod, "vehicle LOD (default: each library entry's default)");
   tc->add_option("--exclude-objects", trace.exclude_objects,
                  "regex on static object ids to leave out (e.g. '^mesh-car_' for Sionna's placeholder cars)");
+  tc->add_option("--cfr", trace.cfr, "add each pair's frequency response: 80211p or nr:MU:NRB (e.g. nr:2:10)");
 
   std::string poses_net, poses_out, poses_mix = "passenger";
   int poses_count = 10;

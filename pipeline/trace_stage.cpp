@@ -3,6 +3,8 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <cstdio>
+#include <optional>
 #include <filesystem>
 #include <regex>
 
@@ -104,6 +106,14 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
             {"dropped_transmission_cap", snap.stats.dropped_transmission_cap}}}};
 }
 
+tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {
+  if (spec == "80211p") return tracer::ofdm_80211p(carrier_hz);
+  int mu = 0, nrb = 0;
+  char tail = 0;
+  if (std::sscanf(spec.c_str(), "nr:%d:%d%c", &mu, &nrb, &tail) == 2) return tracer::ofdm_nr(mu, nrb, carrier_hz);
+  throw std::invalid_argument("--cfr '" + spec + "': expected 80211p or nr:NUMEROLOGY:N_RB (e.g. nr:2:10)");
+}
+
 json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto ext = fs::path(args.out).extension().string();
@@ -112,6 +122,8 @@ json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv
                                 "write .json for a single snapshot");
   if (ext != ".json") throw std::invalid_argument(args.out + ": output must end in .json");
   const TraceSettings settings = load_trace_config(args.config);
+  std::optional<tracer::OfdmGrid> grid;
+  if (!args.cfr.empty()) grid = parse_ofdm_grid(args.cfr, settings.radio.frequency_hz);
 
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file))
@@ -148,10 +160,28 @@ json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv
   const double trace_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
 
   json out = snapshot_json(snap, nodes, scene.object_names(), scene.material_names());
+  if (grid) {
+    out["cfr_grid"] = {{"spec", args.cfr},
+                       {"carrier_hz", grid->carrier_hz},
+                       {"subcarrier_spacing_hz", grid->subcarrier_spacing_hz},
+                       {"n_subcarriers", grid->n_subcarriers},
+                       {"first_offset_hz", grid->offset_hz(0)}};
+    for (std::size_t i = 0; i < snap.pairs.size(); ++i) {
+      const auto h = tracer::frequency_response(snap.pairs[i].paths, *grid);
+      json re = json::array(), im = json::array();
+      for (const auto& v : h) {
+        re.push_back(v.real());
+        im.push_back(v.imag());
+      }
+      out["pairs"][i]["cfr_re"] = re;
+      out["pairs"][i]["cfr_im"] = im;
+    }
+  }
   json config = settings.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
   config["lod"] = args.lod;
   config["exclude_objects"] = args.exclude_objects;
+  config["cfr"] = args.cfr;
   out["radio"] = config["radio"];
   out["provenance"] = provenance("trace", inputs, config, argv);
   out["provenance"]["embree"] = tracer::embree_version();

@@ -146,6 +146,25 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
   EXPECT_FALSE(fs::exists(dir / "t.h5"));
 }
 
+TEST(CliTrace, FrequencyResponseOnOfdmGrids) {
+  auto dir = scratch_dir("cfr");
+  write_text(dir / "nodes.csv", "a,100,40,2\nb,150,45,2\n");
+  for (auto [spec, n] : {std::pair{"80211p", 64u}, std::pair{"nr:2:10", 120u}}) {
+    auto r = run_raysweep("-q trace --scene " + demo_scene().string() + " --nodes " + (dir / "nodes.csv").string() +
+                          " --cfr " + spec + " --out " + (dir / "t.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    const json j = json::parse(read_text(dir / "t.json"));
+    const auto& p = j["pairs"][0];
+    ASSERT_EQ(p["cfr_re"].size(), n);
+    // The carrier subcarrier (n/2) is the coherent narrowband channel.
+    const double re = p["cfr_re"][n / 2], im = p["cfr_im"][n / 2];
+    EXPECT_NEAR(10 * std::log10(re * re + im * im), p["path_gain_db"].get<double>(), 1e-6);
+  }
+  auto r = run_raysweep("-q trace --scene " + demo_scene().string() + " --nodes " + (dir / "nodes.csv").string() +
+                        " --cfr nr:9:10 --out " + (dir / "t.json").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
 TEST(CliTrace, PosesAreDeterministicAndOnTheLanes) {
   auto dir = scratch_dir("poses");
   for (const char* name : {"a.csv", "b.csv"}) {
