@@ -35,9 +35,11 @@
 //                                LOS / NLOSV / NLOS pair counts, pairs without
 //                                any path, and pairs_per_s / rays_per_s over
 //                                wall-clock time.
-// Everything runs on TBB's threads, so all timings are wall-clock (UseRealTime).
+// Everything runs on TBB's threads, so all timings are wall-clock (UseRealTime,
+// which appends "/real_time" to the names); the CPU column counts the calling
+// thread only and the rates are per wall-clock second.
 //
-// Run (medians of 5 repetitions):
+// Run (medians of 5 repetitions; about 80 s on 2 cores):
 //   ./build/bench/bench_tracer --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 // One group only, e.g.: --benchmark_filter='BM_Snapshot/demo/'
 #include <benchmark/benchmark.h>

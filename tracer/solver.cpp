@@ -290,13 +290,17 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       if (st.seq.n > 0) {
         // Branch-free pass over all nodes first (vectorises), keys only for hits.
         const std::size_t nn = nodes.size();
+        const double ox = st.o[0], oy = st.o[1], oz = st.o[2], dx = st.d[0], dy = st.d[1], dz = st.d[2];
+        unsigned any = 0;
         for (std::size_t j = 0; j < nn; ++j) {
-          const double wx = nx[j] - st.o[0], wy = ny[j] - st.o[1], wz = nz[j] - st.o[2];
-          const double s = wx * st.d[0] + wy * st.d[1] + wz * st.d[2];
+          const double wx = nx[j] - ox, wy = ny[j] - oy, wz = nz[j] - oz;
+          const double s = wx * dx + wy * dy + wz * dz;
           const double r = spacing * (st.len + s);
-          inside[j] = (s > 0) & (s <= tseg) & (wx * wx + wy * wy + wz * wz - s * s <= r * r);
+          const unsigned in = (s > 0) & (s <= tseg) & (wx * wx + wy * wy + wz * wz - s * s <= r * r);
+          inside[j] = static_cast<unsigned char>(in);
+          any |= in;
         }
-        for (std::uint32_t j = 0; j < nn; ++j) {
+        for (std::uint32_t j = 0; any && j < nn; ++j) {
           if (!inside[j] || j == src) continue;
           key.other = j;
           key.faces.assign(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n);
