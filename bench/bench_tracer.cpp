@@ -59,7 +59,6 @@
 #include <filesystem>
 #include <map>
 #include <memory>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -80,37 +79,6 @@ using tracer::operator+;
 using tracer::operator*;
 
 const fs::path kVan3twin = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin/DriveX-devs_VaN3Twin/src";
-
-// The static scene without the objects whose source_id matches `pattern`
-// (the same rule as `raysweep trace --exclude-objects`). Returns how many
-// objects were dropped through `dropped`.
-meshkit::Scene without_objects(const meshkit::Scene& in, const std::string& pattern, std::size_t& dropped) {
-  const std::regex re(pattern);
-  std::vector<char> drop(in.objects.size(), 0);
-  dropped = 0;
-  for (std::size_t i = 0; i < in.objects.size(); ++i)
-    if (std::regex_search(in.objects[i].source_id, re)) {
-      drop[i] = 1;
-      ++dropped;
-    }
-  meshkit::Scene out;
-  out.objects = in.objects;  // keep the indices the triangles refer to
-  for (const auto& m : in.meshes) {
-    meshkit::Mesh kept;
-    kept.name = m.name;
-    kept.material = m.material;
-    kept.vertices = m.vertices;  // unreferenced vertices are harmless
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      const std::uint32_t obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
-      if (obj < drop.size() && drop[obj]) continue;
-      kept.triangles.push_back(m.triangles[t]);
-      kept.triangle_object.push_back(obj);
-      if (t < m.triangle_face.size()) kept.triangle_face.push_back(m.triangle_face[t]);
-    }
-    if (!kept.triangles.empty()) out.meshes.push_back(std::move(kept));
-  }
-  return out;
-}
 
 struct Placement {
   std::vector<pipeline::PoseRow> poses;
@@ -160,7 +128,7 @@ std::unique_ptr<SceneCase> load_van3twin() {
     return c;
   }
   try {
-    c->static_scene = without_objects(meshkit::read_mitsuba(xml.string()), "car_", c->excluded_objects);
+    c->static_scene = pipeline::exclude_objects(meshkit::read_mitsuba(xml.string()), "car_", &c->excluded_objects);
     c->net = meshkit::read_sumo_network(net.string());
   } catch (const std::exception& e) {
     c->error = std::string("van3twin scene: ") + e.what();

@@ -5,8 +5,11 @@
 #include <set>
 
 #include "meshkit/materials.hpp"
+#include "pipeline/toml_fields.hpp"
 
 namespace raysweep::pipeline {
+
+using namespace toml_fields;
 
 namespace {
 
@@ -14,20 +17,6 @@ namespace {
 // checked by the stage that owns them.
 const std::set<std::string> kKnownSections = {"scene", "vehicles", "traffic", "radio", "tracer",
                                               "materials", "sweep", "sinr", "city", "report"};
-
-std::string where(const std::string& path, const std::string& key, const toml::node& n) {
-  return path + ": key '" + key + "' (line " + std::to_string(n.source().begin.line) + ")";
-}
-
-double get_number(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<double>()) return *v;
-  throw ConfigError(where(path, key, n) + ": expected a number");
-}
-
-bool get_bool(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<bool>()) return *v;
-  throw ConfigError(where(path, key, n) + ": expected true or false");
-}
 
 std::string get_material(const std::string& path, const std::string& key, const toml::node& n) {
   auto v = n.value<std::string>();
@@ -59,29 +48,29 @@ SceneConfig load_scene_config(const std::string& path) {
   for (auto&& [k, node] : *scene) {
     const std::string key(k.str());
     const std::string full = "scene." + key;
-    if (key == "clip_distance_m") c.clip_distance_m = get_number(path, full, node);
+    if (key == "clip_distance_m") c.clip_distance_m = number(path, full, node);
     else if (key == "clip_bbox") {
       const toml::array* a = node.as_array();
       if (!a || a->size() != 4) throw ConfigError(where(path, full, node) + ": expected [xmin, ymin, xmax, ymax]");
       std::array<double, 4> bb{};
-      for (std::size_t i = 0; i < 4; ++i) bb[i] = get_number(path, full, *a->get(i));
+      for (std::size_t i = 0; i < 4; ++i) bb[i] = number(path, full, *a->get(i));
       if (bb[0] >= bb[2] || bb[1] >= bb[3]) throw ConfigError(where(path, full, node) + ": empty box");
       c.clip_bbox = bb;
     } else if (key == "default_material") c.default_material = get_material(path, full, node);
-    else if (key == "ground") c.ground = get_bool(path, full, node);
+    else if (key == "ground") c.ground = boolean(path, full, node);
     else if (key == "ground_material") c.ground_material = get_material(path, full, node);
-    else if (key == "ground_margin_m") c.ground_margin_m = get_number(path, full, node);
-    else if (key == "level_height_m") c.heights.level_height_m = get_number(path, full, node);
-    else if (key == "default_height_m") c.heights.default_height_m = get_number(path, full, node);
-    else if (key == "max_height_m") c.heights.max_height_m = get_number(path, full, node);
-    else if (key == "simplify_tolerance_m") c.footprint.simplify_tolerance_m = get_number(path, full, node);
-    else if (key == "max_area_change") c.footprint.max_area_change = get_number(path, full, node);
-    else if (key == "max_centroid_shift_m") c.footprint.max_centroid_shift_m = get_number(path, full, node);
-    else if (key == "min_area_m2") c.footprint.min_area_m2 = get_number(path, full, node);
-    else if (key == "outlines_yield_to_parts") c.outlines_yield_to_parts = get_bool(path, full, node);
-    else if (key == "draco") cfg.draco = get_bool(path, full, node);
+    else if (key == "ground_margin_m") c.ground_margin_m = number(path, full, node);
+    else if (key == "level_height_m") c.heights.level_height_m = number(path, full, node);
+    else if (key == "default_height_m") c.heights.default_height_m = number(path, full, node);
+    else if (key == "max_height_m") c.heights.max_height_m = number(path, full, node);
+    else if (key == "simplify_tolerance_m") c.footprint.simplify_tolerance_m = number(path, full, node);
+    else if (key == "max_area_change") c.footprint.max_area_change = number(path, full, node);
+    else if (key == "max_centroid_shift_m") c.footprint.max_centroid_shift_m = number(path, full, node);
+    else if (key == "min_area_m2") c.footprint.min_area_m2 = number(path, full, node);
+    else if (key == "outlines_yield_to_parts") c.outlines_yield_to_parts = boolean(path, full, node);
+    else if (key == "draco") cfg.draco = boolean(path, full, node);
     else if (key == "draco_position_bits") {
-      const double bits = get_number(path, full, node);
+      const double bits = number(path, full, node);
       if (bits != 0 && (bits < 8 || bits > 30))
         throw ConfigError(where(path, full, node) + ": must be 0 (lossless) or 8..30");
       cfg.draco_position_bits = static_cast<int>(bits);

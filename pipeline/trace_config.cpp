@@ -1,35 +1,12 @@
 #include "pipeline/trace_config.hpp"
 
-#include <toml++/toml.h>
-
 #include "meshkit/materials.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/toml_fields.hpp"
 
 namespace raysweep::pipeline {
 
-namespace {
-
-std::string where(const std::string& path, const std::string& key, const toml::node& n) {
-  return path + ": key '" + key + "' (line " + std::to_string(n.source().begin.line) + ")";
-}
-double number(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<double>()) return *v;
-  throw ConfigError(where(path, key, n) + ": expected a number");
-}
-int integer(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<std::int64_t>()) return static_cast<int>(*v);
-  throw ConfigError(where(path, key, n) + ": expected an integer");
-}
-bool boolean(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<bool>()) return *v;
-  throw ConfigError(where(path, key, n) + ": expected true or false");
-}
-std::string text(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<std::string>()) return *v;
-  throw ConfigError(where(path, key, n) + ": expected a string");
-}
-
-}  // namespace
+using namespace toml_fields;
 
 TraceSettings load_trace_config(const std::string& path) {
   TraceSettings s;

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <regex>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -113,6 +114,39 @@ std::string poses_csv(const std::vector<PoseRow>& rows) {
     out << r.id << ',' << r.vclass << ',' << r.x << ',' << r.y << ',' << r.heading_deg << ',' << r.speed_mps << ','
         << r.z << '\n';
   return out.str();
+}
+
+meshkit::Scene exclude_objects(const meshkit::Scene& in, const std::string& pattern, std::size_t* dropped) {
+  if (dropped) *dropped = 0;
+  if (pattern.empty()) return in;
+  std::regex re;
+  try {
+    re = std::regex(pattern);
+  } catch (const std::regex_error& e) {
+    throw std::invalid_argument("--exclude-objects '" + pattern + "': not a valid regex (" + e.what() + ")");
+  }
+  std::vector<bool> drop(in.objects.size());
+  for (std::size_t i = 0; i < in.objects.size(); ++i) {
+    drop[i] = std::regex_search(in.objects[i].source_id, re);
+    if (dropped && drop[i]) ++*dropped;
+  }
+  meshkit::Scene out;
+  out.objects = in.objects;  // triangles keep referring to the same indices
+  for (const auto& m : in.meshes) {
+    meshkit::Mesh kept;
+    kept.name = m.name;
+    kept.material = m.material;
+    kept.vertices = m.vertices;  // unreferenced vertices are harmless
+    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
+      const auto obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
+      if (obj < drop.size() && drop[obj]) continue;
+      kept.triangles.push_back(m.triangles[t]);
+      kept.triangle_object.push_back(obj);
+      if (t < m.triangle_face.size()) kept.triangle_face.push_back(m.triangle_face[t]);
+    }
+    if (!kept.triangles.empty()) out.meshes.push_back(std::move(kept));
+  }
+  return out;
 }
 
 double yaw_from_heading(double heading_deg) { return (90.0 - heading_deg) * M_PI / 180.0; }

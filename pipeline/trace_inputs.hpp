@@ -33,6 +33,12 @@ std::vector<PoseRow> read_poses_csv(const std::string& path);
 std::vector<NodeRow> read_nodes_csv(const std::string& path);
 std::string poses_csv(const std::vector<PoseRow>& rows);
 
+// The static scene without the objects whose source_id matches the regex
+// `pattern` (e.g. the placeholder car boxes of a Sionna scene, which our own
+// vehicles replace). Object indices are kept; `dropped` counts the objects.
+meshkit::Scene exclude_objects(const meshkit::Scene& scene, const std::string& pattern,
+                               std::size_t* dropped = nullptr);
+
 // SUMO heading (clockwise from north, degrees) <-> yaw (counter-clockwise from +x, radians).
 double yaw_from_heading(double heading_deg);
 

@@ -6,7 +6,6 @@
 #include <cstdio>
 #include <optional>
 #include <filesystem>
-#include <regex>
 
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/config.hpp"
@@ -27,32 +26,6 @@ namespace {
 json db_or_null(double linear) {
   if (!(linear > 0)) return nullptr;
   return tracer::to_db(linear);
-}
-
-// Static scene without the objects matching `pattern` (e.g. the placeholder
-// car boxes of a Sionna scene, which our own vehicles replace).
-meshkit::Scene exclude_objects(const meshkit::Scene& in, const std::string& pattern) {
-  if (pattern.empty()) return in;
-  const std::regex re(pattern);
-  std::vector<bool> drop(in.objects.size());
-  for (std::size_t i = 0; i < in.objects.size(); ++i) drop[i] = std::regex_search(in.objects[i].source_id, re);
-  meshkit::Scene out;
-  out.objects = in.objects;
-  for (const auto& m : in.meshes) {
-    meshkit::Mesh k;
-    k.name = m.name;
-    k.material = m.material;
-    k.vertices = m.vertices;
-    for (std::size_t t = 0; t < m.triangles.size(); ++t) {
-      const auto obj = t < m.triangle_object.size() ? m.triangle_object[t] : 0;
-      if (obj < drop.size() && drop[obj]) continue;
-      k.triangles.push_back(m.triangles[t]);
-      k.triangle_object.push_back(obj);
-      if (t < m.triangle_face.size()) k.triangle_face.push_back(m.triangle_face[t]);
-    }
-    if (!k.triangles.empty()) out.meshes.push_back(std::move(k));
-  }
-  return out;
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
+#include "pipeline/toml_fields.hpp"
 
 namespace raysweep::pipeline {
 
@@ -27,15 +28,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace raysweep::meshkit;
 
-namespace {
+using namespace toml_fields;
 
-std::string at(const std::string& path, const std::string& key, const toml::node& n) {
-  return path + ": key '" + key + "' (line " + std::to_string(n.source().begin.line) + ")";
-}
-double number(const std::string& path, const std::string& key, const toml::node& n) {
-  if (auto v = n.value<double>()) return *v;
-  throw ConfigError(at(path, key, n) + ": expected a number");
-}
+namespace {
 
 json dims_json(const VehicleDims& d) { return {{"length", d.length}, {"width", d.width}, {"height", d.height}}; }
 
@@ -52,19 +47,19 @@ VehiclesConfig load_vehicles_config(const std::string& path) {
     const std::string key(k.str()), full = "vehicles." + key;
     if (key == "classes") {
       const toml::array* a = node.as_array();
-      if (!a) throw ConfigError(at(path, full, node) + ": expected a list of class names");
+      if (!a) throw ConfigError(where(path, full, node) + ": expected a list of class names");
       for (auto&& c : *a) {
         auto s = c.value<std::string>();
-        if (!s || !find_vehicle_class(*s)) throw ConfigError(at(path, full, c) + ": unknown vehicle class");
+        if (!s || !find_vehicle_class(*s)) throw ConfigError(where(path, full, c) + ": unknown vehicle class");
         cfg.classes.push_back(*s);
       }
     } else if (key == "lod_ratios") {
       const toml::array* a = node.as_array();
-      if (!a || a->empty()) throw ConfigError(at(path, full, node) + ": expected a list of ratios");
+      if (!a || a->empty()) throw ConfigError(where(path, full, node) + ": expected a list of ratios");
       cfg.lod_ratios.clear();
       for (auto&& r : *a) {
         const double x = number(path, full, r);
-        if (!(x > 0 && x <= 1)) throw ConfigError(at(path, full, r) + ": ratios must be in (0, 1]");
+        if (!(x > 0 && x <= 1)) throw ConfigError(where(path, full, r) + ": ratios must be in (0, 1]");
         cfg.lod_ratios.push_back(x);
       }
     } else if (key == "lod_tolerance_m") cfg.lod_tolerance_m = number(path, full, node);
@@ -72,48 +67,48 @@ VehiclesConfig load_vehicles_config(const std::string& path) {
     else if (key == "antenna_offset_m") cfg.antenna_offset_m = number(path, full, node);
     else if (key == "scale_to_class") {
       auto b = node.value<bool>();
-      if (!b) throw ConfigError(at(path, full, node) + ": expected true or false");
+      if (!b) throw ConfigError(where(path, full, node) + ": expected true or false");
       cfg.scale_to_class = *b;
     } else if (key == "draco") {
       auto b = node.value<bool>();
-      if (!b) throw ConfigError(at(path, full, node) + ": expected true or false");
+      if (!b) throw ConfigError(where(path, full, node) + ": expected true or false");
       cfg.draco = *b;
     } else if (key == "draco_position_bits") cfg.draco_position_bits = static_cast<int>(number(path, full, node));
     else if (key == "default_material") {
       auto s = node.value<std::string>();
-      if (!s || !is_radio_material(*s)) throw ConfigError(at(path, full, node) + ": unknown radio material");
+      if (!s || !is_radio_material(*s)) throw ConfigError(where(path, full, node) + ": unknown radio material");
       cfg.rules.default_material = *s;
     } else if (key == "rules") {
       // A rules list replaces the built-in table entirely: partial merges of
       // ordered first-match rules would be impossible to reason about.
       const toml::array* a = node.as_array();
-      if (!a) throw ConfigError(at(path, full, node) + ": expected [[vehicles.rules]] tables");
+      if (!a) throw ConfigError(where(path, full, node) + ": expected [[vehicles.rules]] tables");
       cfg.rules.rules.clear();
       for (auto&& r : *a) {
         const toml::table* t = r.as_table();
-        if (!t) throw ConfigError(at(path, full, r) + ": expected a table {field, pattern, material}");
+        if (!t) throw ConfigError(where(path, full, r) + ": expected a table {field, pattern, material}");
         SegmentationRule rule;
         for (auto&& [rk, rv] : *t) {
           const std::string name(rk.str());
           auto s = rv.value<std::string>();
-          if (!s) throw ConfigError(at(path, full + "." + name, rv) + ": expected a string");
+          if (!s) throw ConfigError(where(path, full + "." + name, rv) + ": expected a string");
           if (name == "field") rule.field = *s;
           else if (name == "pattern") rule.pattern = *s;
           else if (name == "material") rule.material = *s;
-          else throw ConfigError(at(path, full + "." + name, rv) + ": unknown key");
+          else throw ConfigError(where(path, full + "." + name, rv) + ": unknown key");
         }
         if (rule.field.empty()) rule.field = "any";
         if (!is_radio_material(rule.material))
-          throw ConfigError(at(path, full, r) + ": unknown radio material '" + rule.material + "'");
+          throw ConfigError(where(path, full, r) + ": unknown radio material '" + rule.material + "'");
         cfg.rules.rules.push_back(rule);
       }
     } else if (key == "class") {
       const toml::table* t = node.as_table();
-      if (!t) throw ConfigError(at(path, full, node) + ": expected [vehicles.class.<name>] tables");
+      if (!t) throw ConfigError(where(path, full, node) + ": expected [vehicles.class.<name>] tables");
       for (auto&& [ck, cv] : *t) {
         const toml::table* ct = cv.as_table();
         const std::string cname(ck.str());
-        if (!ct) throw ConfigError(at(path, full + "." + cname, cv) + ": expected a table");
+        if (!ct) throw ConfigError(where(path, full + "." + cname, cv) + ": expected a table");
         VehicleEntryConfig e;
         for (auto&& [pk, pv] : *ct) {
           const std::string pname(pk.str()), pfull = full + "." + cname + "." + pname;
@@ -122,17 +117,17 @@ VehiclesConfig load_vehicles_config(const std::string& path) {
           else if (pname == "height") e.dims.height = number(path, pfull, pv);
           else if (pname == "antenna") {
             const toml::array* a = pv.as_array();
-            if (!a || a->size() != 3) throw ConfigError(at(path, pfull, pv) + ": expected [x, y, z]");
+            if (!a || a->size() != 3) throw ConfigError(where(path, pfull, pv) + ": expected [x, y, z]");
             e.antenna = Vec3{number(path, pfull, *a->get(0)), number(path, pfull, *a->get(1)),
                              number(path, pfull, *a->get(2))};
           } else {
-            throw ConfigError(at(path, pfull, pv) + ": unknown key");
+            throw ConfigError(where(path, pfull, pv) + ": unknown key");
           }
         }
         cfg.entries[cname] = e;
       }
     } else {
-      throw ConfigError(at(path, full, node) + ": unknown key");
+      throw ConfigError(where(path, full, node) + ": unknown key");
     }
   }
   return cfg;

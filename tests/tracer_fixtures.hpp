@@ -5,9 +5,18 @@
 #include <string>
 
 #include "meshkit/scene.hpp"
+#include "scene_fixtures.hpp"
 #include "tracer/tracer.hpp"
 
 namespace raysweep::test {
+
+// The next unused planar-face id of a scene.
+inline std::uint32_t next_face_id(const meshkit::Scene& scene) {
+  std::uint32_t face = 0;
+  for (const auto& mesh : scene.meshes)
+    for (auto f : mesh.triangle_face) face = std::max(face, f + 1);
+  return face;
+}
 
 // A planar quad a-b-c-d (counter-clockwise seen from the side its normal
 // points to) as one object and one planar face.
@@ -15,9 +24,7 @@ inline void add_quad(meshkit::Scene& scene, const std::string& material, const s
                      meshkit::Vec3 a, meshkit::Vec3 b, meshkit::Vec3 c, meshkit::Vec3 d) {
   auto& m = scene.mesh_for(material, "test");
   const auto obj = scene.add_object("mesh", object);
-  std::uint32_t face = 0;
-  for (const auto& mesh : scene.meshes)
-    for (auto f : mesh.triangle_face) face = std::max(face, f + 1);
+  const std::uint32_t face = next_face_id(scene);
   const auto base = static_cast<std::uint32_t>(m.vertices.size());
   m.vertices.insert(m.vertices.end(), {a, b, c, d});
   m.triangles.push_back({base, base + 1, base + 2});
@@ -48,21 +55,9 @@ inline void add_wall_y(meshkit::Scene& s, double y0, double half, const std::str
 // Closed axis-aligned box (a building) as six faces of one object.
 inline void add_box_object(meshkit::Scene& s, meshkit::Vec3 lo, meshkit::Vec3 hi, const std::string& material,
                            const std::string& name) {
+  std::uint32_t face = next_face_id(s);
   auto& m = s.mesh_for(material, "test");
-  const auto obj = s.add_object("building", name);
-  std::uint32_t face = 0;
-  for (const auto& mesh : s.meshes)
-    for (auto f : mesh.triangle_face) face = std::max(face, f + 1);
-  const auto base = static_cast<std::uint32_t>(m.vertices.size());
-  for (int i = 0; i < 8; ++i)
-    m.vertices.push_back({i & 1 ? hi[0] : lo[0], i & 2 ? hi[1] : lo[1], i & 4 ? hi[2] : lo[2]});
-  const int quads[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto& q : quads) {
-    m.triangles.push_back({base + q[0], base + q[1], base + q[2]});
-    m.triangles.push_back({base + q[0], base + q[2], base + q[3]});
-    m.triangle_object.insert(m.triangle_object.end(), 2, obj);
-    m.triangle_face.insert(m.triangle_face.end(), 2, face++);
-  }
+  add_box(m, lo, hi, s.add_object("building", name), face);
 }
 
 inline tracer::Node node(const std::string& id, meshkit::Vec3 p, meshkit::Vec3 v = {0, 0, 0}) {

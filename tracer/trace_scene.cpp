@@ -24,6 +24,26 @@ void check_device(RTCDevice device, const char* what) {
   if (e != RTC_ERROR_NONE) throw std::runtime_error(std::string("Embree error ") + std::to_string(e) + " in " + what);
 }
 
+// A ray in Embree's float frame (origin already relative to the scene origin).
+RTCRayHit make_ray(const Vec3& o, const Vec3& dir, double tnear, double tfar) {
+  RTCRayHit rh;
+  rh.ray.org_x = static_cast<float>(o[0]);
+  rh.ray.org_y = static_cast<float>(o[1]);
+  rh.ray.org_z = static_cast<float>(o[2]);
+  rh.ray.dir_x = static_cast<float>(dir[0]);
+  rh.ray.dir_y = static_cast<float>(dir[1]);
+  rh.ray.dir_z = static_cast<float>(dir[2]);
+  rh.ray.tnear = static_cast<float>(tnear);
+  rh.ray.tfar = tfar > 3e38 ? std::numeric_limits<float>::infinity() : static_cast<float>(tfar);
+  rh.ray.time = 0;
+  rh.ray.mask = 0xFFFFFFFF;
+  rh.ray.id = 0;
+  rh.ray.flags = 0;
+  rh.hit.geomID = kNone;
+  rh.hit.instID[0] = kNone;
+  return rh;
+}
+
 }  // namespace
 
 struct TraceScene::Shape {
@@ -247,21 +267,7 @@ bool TraceScene::closest_hit(const Vec3& origin, const Vec3& dir, double tnear, 
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   for (int attempt = 0; attempt < 16; ++attempt) {
-    RTCRayHit rh;
-    rh.ray.org_x = static_cast<float>(o[0]);
-    rh.ray.org_y = static_cast<float>(o[1]);
-    rh.ray.org_z = static_cast<float>(o[2]);
-    rh.ray.dir_x = static_cast<float>(dir[0]);
-    rh.ray.dir_y = static_cast<float>(dir[1]);
-    rh.ray.dir_z = static_cast<float>(dir[2]);
-    rh.ray.tnear = static_cast<float>(tnear);
-    rh.ray.tfar = tfar > 3e38 ? std::numeric_limits<float>::infinity() : static_cast<float>(tfar);
-    rh.ray.time = 0;
-    rh.ray.mask = 0xFFFFFFFF;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
-    rh.hit.geomID = kNone;
-    rh.hit.instID[0] = kNone;
+    RTCRayHit rh = make_ray(o, dir, tnear, tfar);
     rtcIntersect1(d.top, &ctx, &rh);
     if (rh.hit.geomID == kNone) return false;
     const std::uint32_t inst = rh.hit.instID[0];
@@ -342,21 +348,7 @@ std::size_t TraceScene::shoot_raw(const Vec3& origin, const std::vector<Vec3>& d
         RTCIntersectContext ctx;
         rtcInitIntersectContext(&ctx);
         for (std::size_t i = r.begin(); i != r.end(); ++i) {
-          RTCRayHit rh;
-          rh.ray.org_x = static_cast<float>(o[0]);
-          rh.ray.org_y = static_cast<float>(o[1]);
-          rh.ray.org_z = static_cast<float>(o[2]);
-          rh.ray.dir_x = static_cast<float>(directions[i][0]);
-          rh.ray.dir_y = static_cast<float>(directions[i][1]);
-          rh.ray.dir_z = static_cast<float>(directions[i][2]);
-          rh.ray.tnear = 0;
-          rh.ray.tfar = static_cast<float>(tfar);
-          rh.ray.time = 0;
-          rh.ray.mask = 0xFFFFFFFF;
-          rh.ray.id = 0;
-          rh.ray.flags = 0;
-          rh.hit.geomID = kNone;
-          rh.hit.instID[0] = kNone;
+          RTCRayHit rh = make_ray(o, directions[i], 0, tfar);
           rtcIntersect1(d.top, &ctx, &rh);
           n += rh.hit.geomID != kNone;
         }
