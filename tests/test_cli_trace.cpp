@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include "test_util.hpp"
 
@@ -12,9 +13,10 @@ using nlohmann::json;
 
 namespace {
 
+// Built once per process: ctest runs each test in its own process, in parallel.
 fs::path demo_scene() {
   static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / "raysweep-tests" / "cli_trace_demo_scene";
+    fs::path d = fs::temp_directory_path() / "raysweep-tests" / ("cli_trace_demo_scene." + std::to_string(getpid()));
     fs::remove_all(d);
     const auto demo = source_dir() / "datasets/demo";
     auto r = run_raysweep("-q scene --no-preview --osm " + (demo / "kirchberg.osm").string() + " --net " +

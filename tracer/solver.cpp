@@ -268,11 +268,12 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
     Sequence seq;
   };
   std::vector<State> stack;
-  std::vector<double> nx(nodes.size()), ny(nodes.size()), nz(nodes.size());
+  const Vec3 ref = nodes[src].position;
+  std::vector<float> nx(nodes.size()), ny(nodes.size()), nz(nodes.size());
   for (std::size_t j = 0; j < nodes.size(); ++j) {
-    nx[j] = nodes[j].position[0];
-    ny[j] = nodes[j].position[1];
-    nz[j] = nodes[j].position[2];
+    nx[j] = static_cast<float>(nodes[j].position[0] - ref[0]);
+    ny[j] = static_cast<float>(nodes[j].position[1] - ref[1]);
+    nz[j] = static_cast<float>(nodes[j].position[2] - ref[2]);
   }
   std::vector<unsigned char> inside(nodes.size());
   std::unordered_set<CandidateKey, CandidateHash> seen;
@@ -290,13 +291,20 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       if (st.seq.n > 0) {
         // Branch-free pass over all nodes first (vectorises), keys only for hits.
         const std::size_t nn = nodes.size();
-        const double ox = st.o[0], oy = st.o[1], oz = st.o[2], dx = st.d[0], dy = st.d[1], dz = st.d[2];
+        // Single precision relative to the source (city-sized offsets keep
+        // millimetres): a candidate test only, the exact path is recomputed
+        // in double; float doubles the SIMD width of this hot loop.
+        const float ox = static_cast<float>(st.o[0] - ref[0]), oy = static_cast<float>(st.o[1] - ref[1]),
+                    oz = static_cast<float>(st.o[2] - ref[2]);
+        const float dx = static_cast<float>(st.d[0]), dy = static_cast<float>(st.d[1]), dz = static_cast<float>(st.d[2]);
+        const float len = static_cast<float>(st.len), sp = static_cast<float>(spacing);
+        const float tmax = static_cast<float>(std::min(tseg, 1e30));
         unsigned any = 0;
         for (std::size_t j = 0; j < nn; ++j) {
-          const double wx = nx[j] - ox, wy = ny[j] - oy, wz = nz[j] - oz;
-          const double s = wx * dx + wy * dy + wz * dz;
-          const double r = spacing * (st.len + s);
-          const unsigned in = (s > 0) & (s <= tseg) & (wx * wx + wy * wy + wz * wz - s * s <= r * r);
+          const float wx = nx[j] - ox, wy = ny[j] - oy, wz = nz[j] - oz;
+          const float s = wx * dx + wy * dy + wz * dz;
+          const float r = sp * (len + s);
+          const unsigned in = (s > 0) & (s <= tmax) & (wx * wx + wy * wy + wz * wz - s * s <= r * r);
           inside[j] = static_cast<unsigned char>(in);
           any |= in;
         }
