@@ -88,10 +88,8 @@ TEST(TracerPhysics, FreeSpaceMatchesFriis) {
     const auto& p = snap.pairs[0];
     ASSERT_EQ(p.paths.size(), 1u) << d;
     EXPECT_EQ(p.los_class, tracer::LosClass::LOS);
-    // Isotropic vertical polarisation: |a|^2 = (lambda / 4 pi d)^2 times the
-    // polarisation match of theta_hat at both ends, which is cos^2 of nothing
-    // away from the poles... except a tilted link sees theta_hat of the two
-    // ends aligned (both lie in the vertical plane of the link): exact.
+    // Isotropic vertical polarisation: theta_hat of the two ends lie in the
+    // vertical plane of the link and coincide, so a is exactly Friis.
     EXPECT_NEAR(db(std::norm(p.paths[0].a)), db(std::norm(friis(d))), 1e-3) << d;
     EXPECT_NEAR(std::arg(p.paths[0].a / friis(d)), 0.0, 1e-6) << d;
     EXPECT_NEAR(p.paths[0].tau_s, d / kC, 1e-13);

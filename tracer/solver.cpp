@@ -28,9 +28,6 @@ Vec3 te_basis(const Vec3& k, const Vec3& n) {
   return l > 1e-12 ? (1.0 / l) * s : any_perpendicular(k);
 }
 
-// Slack that absorbs float rounding of a hit at distance t from a point.
-double slack(const Vec3& p, double t) { return std::max(1e-3, 1e-6 * (norm(p) + t)); }
-
 // Face sequence of one shoot-and-bounce ray, without heap allocation.
 struct Sequence {
   std::array<FaceRef, kMaxDepth> faces{};
@@ -41,9 +38,6 @@ struct CandidateKey {
   std::uint32_t other;
   std::vector<FaceRef> faces;
   bool operator==(const CandidateKey&) const = default;
-  bool operator<(const CandidateKey& o) const {
-    return other != o.other ? other < o.other : faces < o.faces;
-  }
 };
 struct CandidateHash {
   std::size_t operator()(const CandidateKey& k) const {
@@ -113,7 +107,7 @@ LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std
   if (len <= 0) return LosClass::LOS;
   const Vec3 dir = (1.0 / len) * (b - a);
   std::vector<Hit> hits;
-  scene.all_hits(a, dir, slack(a, 0) * 0.1, len - slack(a, len) * 0.1, hits, 1u << 20);
+  scene.all_hits(a, dir, scene.slack(a, 0) * 0.1, len - scene.slack(a, len) * 0.1, hits, 1u << 20);
   if (rays) *rays += hits.size() + 1;
   bool static_hit = false;
   for (const auto& h : hits) {
@@ -179,9 +173,9 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
     length += len;
     const FaceRef* skip = m > 0 ? &faces[m - 1] : nullptr;
     const bool ends_on_face = m < k;
-    const double end_tol = ends_on_face ? std::max(slack(b, 0), 2 * scene.flatness(faces[m]) + 1e-6 * len)
-                                        : slack(b, 0) * 0.1;
-    const double t0 = m > 0 ? 0 : slack(a, 0) * 0.1;
+    const double end_tol = ends_on_face ? std::max(scene.slack(b, 0), 2 * scene.flatness(faces[m]) + 1e-6 * len)
+                                        : scene.slack(b, 0) * 0.1;
+    const double t0 = m > 0 ? 0 : scene.slack(a, 0) * 0.1;
     const double tfar = ends_on_face ? len + end_tol : len - end_tol;
     if (tfar <= t0) return std::nullopt;
     if (!scene.all_hits(a, dir, t0, tfar, hits, 4096, skip)) return std::nullopt;

@@ -296,6 +296,10 @@ bool TraceScene::all_hits(const Vec3& origin, const Vec3& dir, double tnear, dou
   return true;
 }
 
+double TraceScene::slack(const Vec3& p, double t) const {
+  return std::max(1e-3, 1e-6 * (norm(p - impl_->origin) + t));
+}
+
 Plane TraceScene::plane(const FaceRef& f) const {
   const auto& d = *impl_;
   if (f.instance == 0) return d.world.face_plane[f.face];

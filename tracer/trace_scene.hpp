@@ -80,6 +80,11 @@ class TraceScene {
   bool all_hits(const Vec3& origin, const Vec3& dir, double tnear, double tfar, std::vector<Hit>& hits,
                 std::size_t max_hits, const FaceRef* skip = nullptr) const;
 
+  // Distance that absorbs Embree's float rounding for a hit at distance t
+  // from p: Embree's frame is centred on the scene, so it depends on p's
+  // distance from that centre, not from the world origin.
+  double slack(const Vec3& p, double t) const;
+
   // Face data in world coordinates (double precision).
   Plane plane(const FaceRef& f) const;
   std::uint16_t material(const FaceRef& f) const;
