@@ -1,0 +1,965 @@
+// HDF5 channel dataset: writer round trip (read back with the HDF5 C API),
+// validation of corrupt files, determinism, frame blocks, and the Python reader.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#if __has_include(<hdf5.h>)
+#include <hdf5.h>
+#else
+#include <hdf5/serial/hdf5.h>  // Debian's serial HDF5 (the test target has no HDF5 include path)
+#endif
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <complex>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "generators/dataset_schema.hpp"
+#include "generators/dataset_writer.hpp"
+#include "generators/frame_block.hpp"
+#include "meshkit/errors.hpp"
+#include "test_util.hpp"
+
+namespace fs = std::filesystem;
+using namespace raysweep::generators;
+using raysweep::meshkit::InputError;
+using raysweep::test::run_command;
+using raysweep::test::scratch_dir;
+using raysweep::test::source_dir;
+
+namespace {
+
+constexpr float kNoGain = -std::numeric_limits<float>::infinity();
+constexpr std::uint32_t kK = 4;  // subcarriers
+constexpr std::uint32_t kStaticObjects = 3;
+
+fs::path tmp_dir(const std::string& name) { return scratch_dir(name + "-" + std::to_string(::getpid())); }
+
+// ---------------------------------------------------------------------------
+// Test records: 1 RSU (node 0) and 2 vehicles (nodes 1, 2), three frames, links
+// with 1, 3 and 0 paths (one out of range with -inf gains), interactions, CFR.
+
+struct Builder {
+  std::uint32_t path_counter = 0, interaction_counter = 0, link_counter = 0;
+
+  NodeState state(std::uint32_t node, double t) {
+    NodeState s;
+    s.node = node;
+    s.x = 10.0 + 25.0 * node + 12.5 * t;
+    s.y = 20.0 - 3.0 * node;
+    s.z = node == 0 ? 6.0 : 0.25;
+    s.vx = node == 0 ? 0.f : 12.5f;
+    s.vy = node == 2 ? -1.5f : 0.f;
+    s.vz = 0.f;
+    s.heading_deg = node == 0 ? 0.f : 90.f + static_cast<float>(node);
+    return s;
+  }
+
+  // Adds a link with paths whose interaction counts and objects are given.
+  void link(FrameRecord& f, std::uint32_t tx, std::uint32_t rx, std::uint8_t los, std::uint8_t flags,
+            const std::vector<std::vector<std::uint32_t>>& path_objects) {
+    LinkRecord l;
+    l.tx = tx;
+    l.rx = rx;
+    l.los_class = los;
+    l.flags = flags;
+    l.blocker_count = static_cast<std::uint16_t>(los == 0 ? 0 : los + 1);
+    l.path_count = static_cast<std::uint32_t>(path_objects.size());
+    const std::uint32_t li = link_counter++;
+    if (path_objects.empty()) {
+      l.gain_coherent_db = kNoGain;
+      l.gain_incoherent_db = kNoGain;
+      l.first_delay_s = 0;
+      l.rms_delay_spread_s = 0;
+    } else {
+      l.gain_coherent_db = -60.5f - static_cast<float>(li);
+      l.gain_incoherent_db = -61.25f - static_cast<float>(li);
+      l.first_delay_s = 1e-7 * (li + 1);
+      l.rms_delay_spread_s = 2.5e-9f * static_cast<float>(li);
+    }
+    f.links.push_back(l);
+    for (std::size_t p = 0; p < path_objects.size(); ++p) {
+      const std::uint32_t j = path_counter++;
+      PathRecord r;
+      r.a = {1e-3f * static_cast<float>(j + 1), -5e-4f * static_cast<float>(j)};
+      r.tau_s = l.first_delay_s + 1e-8 * static_cast<double>(p);
+      r.theta_t = 0.1f * static_cast<float>(j), r.phi_t = -0.2f * static_cast<float>(j);
+      r.theta_r = 1.5f - 0.05f * static_cast<float>(j), r.phi_r = 3.0f - 0.1f * static_cast<float>(j);
+      r.doppler_hz = 10.f * static_cast<float>(j) - 30.f;
+      r.interaction_count = static_cast<std::uint8_t>(path_objects[p].size());
+      f.paths.push_back(r);
+      for (std::uint32_t obj : path_objects[p]) {
+        const std::uint32_t m = interaction_counter++;
+        InteractionRecord it;
+        it.type = static_cast<std::uint8_t>(1 + m % 4);
+        it.object = obj;
+        it.x = static_cast<float>(m), it.y = 2.f * static_cast<float>(m), it.z = 0.5f * static_cast<float>(m);
+        f.interactions.push_back(it);
+      }
+    }
+    for (std::uint32_t k = 0; k < kK; ++k)
+      f.cfr.emplace_back(static_cast<float>(li * 10 + k), -0.5f * static_cast<float>(k));
+  }
+
+  std::vector<FrameRecord> frames() {
+    std::vector<FrameRecord> out(3);
+    out[0].time_s = 0.0;
+    out[1].time_s = 0.1;
+    out[2].time_s = 0.2;
+    for (std::uint32_t n : {0u, 1u, 2u}) out[0].nodes.push_back(state(n, 0.0));
+    link(out[0], 0, 1, 0, 0, {{}});                 // LOS, 1 direct path
+    link(out[0], 0, 2, 2, 0, {{0}, {1, 2}, {}});    // NLOS, 3 paths
+    link(out[0], 1, 2, 1, kLinkOutOfRange, {});     // out of range: no paths
+    for (std::uint32_t n : {0u, 1u, 2u}) out[1].nodes.push_back(state(n, 0.1));
+    link(out[1], 0, 1, 0, kLinkCached, {{kStaticObjects + 1}});
+    link(out[1], 1, 2, 1, 0, {{kStaticObjects + 2, 0}, {}, {2}});
+    for (std::uint32_t n : {0u, 2u}) out[2].nodes.push_back(state(n, 0.2));  // vehicle 1 has left
+    link(out[2], 0, 2, 2, 0, {{0, 1, 2}});
+    return out;
+  }
+};
+
+std::vector<NodeInfo> test_nodes() {
+  std::vector<NodeInfo> n(3);
+  n[0].id = "rsu0";
+  n[0].kind = NodeKind::rsu;
+  n[1].id = "veh.a";
+  n[1].vclass = "passenger";
+  n[1].vtype = "DEFAULT_VEHTYPE";
+  n[1].length_m = 4.5f, n[1].width_m = 1.8f, n[1].height_m = 1.5f;
+  n[2].id = "veh.b";
+  n[2].vclass = "truck";
+  n[2].vtype = "lorry";
+  n[2].length_m = 12.f, n[2].width_m = 2.5f, n[2].height_m = 3.75f;
+  return n;
+}
+
+std::vector<std::string> test_objects() { return {"building/1", "building/2", "ground", "rsu0", "veh.a", "veh.b"}; }
+
+DatasetHeader test_header() {
+  DatasetHeader h;
+  h.raysweep_version = "0.1.0-test";
+  h.git_hash = "0123456789ab";
+  h.config = {{"sweep", {{"step_s", 0.1}}}};
+  h.inputs = {{"fcd", {{"path", "fcd.xml"}, {"sha256", "ab"}}}};
+  h.provenance = {{"command", "raysweep sweep"}};
+  h.seed = 42;
+  h.carrier_hz = 5.9e9;
+  h.bandwidth_hz = 10e6;
+  h.cfr_subcarriers = kK;
+  h.cfr_subcarrier_spacing_hz = 156250;
+  return h;
+}
+
+void write_test_dataset(const fs::path& file, bool finish = true) {
+  Builder b;
+  const auto frames = b.frames();
+  DatasetWriter w(file, test_header());
+  for (const auto& f : frames) w.append(f);
+  if (finish) w.finish(test_nodes(), test_objects());
+}
+
+// ---------------------------------------------------------------------------
+// HDF5 C API helpers for reading back and corrupting files.
+
+struct H5 {
+  hid_t id;
+  herr_t (*close)(hid_t);
+  ~H5() {
+    if (id >= 0) close(id);
+  }
+};
+
+template <class T>
+std::vector<T> read_ds(const fs::path& file, const std::string& name, hid_t memtype, std::vector<hsize_t>* dims_out = nullptr) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  EXPECT_GE(f.id, 0) << file;
+  H5 d{H5Dopen2(f.id, name.c_str(), H5P_DEFAULT), H5Dclose};
+  EXPECT_GE(d.id, 0) << name;
+  H5 s{H5Dget_space(d.id), H5Sclose};
+  std::vector<hsize_t> dims(static_cast<std::size_t>(H5Sget_simple_extent_ndims(s.id)));
+  H5Sget_simple_extent_dims(s.id, dims.data(), nullptr);
+  hsize_t n = 1;
+  for (auto x : dims) n *= x;
+  std::vector<T> out(n);
+  if (n) {
+    EXPECT_GE(H5Dread(d.id, memtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), 0) << name;
+  }
+  if (dims_out) *dims_out = dims;
+  return out;
+}
+
+std::vector<std::complex<float>> read_complex(const fs::path& file, const std::string& name,
+                                              std::vector<hsize_t>* dims = nullptr) {
+  H5 t{H5Tcreate(H5T_COMPOUND, sizeof(std::complex<float>)), H5Tclose};
+  H5Tinsert(t.id, "r", 0, H5T_NATIVE_FLOAT);
+  H5Tinsert(t.id, "i", sizeof(float), H5T_NATIVE_FLOAT);
+  return read_ds<std::complex<float>>(file, name, t.id, dims);
+}
+
+std::vector<std::string> read_strings(const fs::path& file, const std::string& name) {
+  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(t.id, H5T_VARIABLE);
+  H5Tset_cset(t.id, H5T_CSET_UTF8);
+  auto ptrs = read_ds<char*>(file, name, t.id);
+  std::vector<std::string> out;
+  for (char* p : ptrs) {
+    out.emplace_back(p ? p : "");
+    H5free_memory(p);
+  }
+  return out;
+}
+
+std::string str_attr(const fs::path& file, const std::string& obj, const std::string& name) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  H5 a{H5Aopen_by_name(f.id, obj.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  EXPECT_GE(a.id, 0) << obj << " " << name;
+  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(t.id, H5T_VARIABLE);
+  H5Tset_cset(t.id, H5T_CSET_UTF8);
+  char* p = nullptr;
+  EXPECT_GE(H5Aread(a.id, t.id, &p), 0);
+  std::string s = p ? p : "";
+  H5free_memory(p);
+  return s;
+}
+
+template <class T>
+T num_attr(const fs::path& file, const std::string& obj, const std::string& name, hid_t memtype) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  H5 a{H5Aopen_by_name(f.id, obj.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  EXPECT_GE(a.id, 0) << obj << " " << name;
+  T v{};
+  EXPECT_GE(H5Aread(a.id, memtype, &v), 0);
+  return v;
+}
+
+bool has_attr(const fs::path& file, const std::string& name) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  return H5Aexists(f.id, name.c_str()) > 0;
+}
+
+// Overwrites element `row` of an integer dataset.
+void poke_u64(const fs::path& file, const std::string& name, hsize_t row, std::uint64_t value) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+  ASSERT_GE(f.id, 0);
+  H5 d{H5Dopen2(f.id, name.c_str(), H5P_DEFAULT), H5Dclose};
+  ASSERT_GE(d.id, 0);
+  H5 fs_{H5Dget_space(d.id), H5Sclose};
+  const hsize_t count = 1;
+  ASSERT_GE(H5Sselect_hyperslab(fs_.id, H5S_SELECT_SET, &row, nullptr, &count, nullptr), 0);
+  H5 ms{H5Screate_simple(1, &count, nullptr), H5Sclose};
+  ASSERT_GE(H5Dwrite(d.id, H5T_NATIVE_UINT64, ms.id, fs_.id, H5P_DEFAULT, &value), 0);
+}
+
+void set_str_attr(const fs::path& file, const std::string& name, const std::string& value) {
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+  ASSERT_GE(f.id, 0);
+  ASSERT_GE(H5Adelete(f.id, name.c_str()), 0);
+  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(t.id, H5T_VARIABLE);
+  H5Tset_cset(t.id, H5T_CSET_UTF8);
+  H5 s{H5Screate(H5S_SCALAR), H5Sclose};
+  H5 a{H5Acreate2(f.id, name.c_str(), t.id, s.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  ASSERT_GE(a.id, 0);
+  const char* p = value.c_str();
+  ASSERT_GE(H5Awrite(a.id, t.id, &p), 0);
+}
+
+std::string read_bytes(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+
+void write_bytes(const fs::path& p, const std::string& bytes) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+bool mentions(const std::vector<std::string>& problems, const std::string& what) {
+  return std::any_of(problems.begin(), problems.end(),
+                     [&](const std::string& p) { return p.find(what) != std::string::npos; });
+}
+
+std::string joined(const std::vector<std::string>& problems) {
+  std::string s;
+  for (const auto& p : problems) s += "  " + p + "\n";
+  return s;
+}
+
+// Expected flat tables, computed from the records (independently of the writer).
+struct Flat {
+  std::vector<double> time;
+  std::vector<std::uint64_t> node_offset, link_offset, path_offset, interaction_offset;
+  std::vector<std::uint32_t> node_count, link_count, link_frame;
+  std::vector<NodeState> states;
+  std::vector<LinkRecord> links;
+  std::vector<PathRecord> paths;
+  std::vector<InteractionRecord> interactions;
+  std::vector<std::complex<float>> cfr;
+};
+
+Flat flatten(const std::vector<FrameRecord>& frames) {
+  Flat x;
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const auto& fr = frames[f];
+    x.time.push_back(fr.time_s);
+    x.node_offset.push_back(x.states.size());
+    x.node_count.push_back(static_cast<std::uint32_t>(fr.nodes.size()));
+    x.link_offset.push_back(x.links.size());
+    x.link_count.push_back(static_cast<std::uint32_t>(fr.links.size()));
+    x.states.insert(x.states.end(), fr.nodes.begin(), fr.nodes.end());
+    for (const auto& l : fr.links) {
+      x.link_frame.push_back(static_cast<std::uint32_t>(f));
+      x.links.push_back(l);
+    }
+    x.paths.insert(x.paths.end(), fr.paths.begin(), fr.paths.end());
+    x.interactions.insert(x.interactions.end(), fr.interactions.begin(), fr.interactions.end());
+    x.cfr.insert(x.cfr.end(), fr.cfr.begin(), fr.cfr.end());
+  }
+  std::uint64_t p = 0;
+  for (const auto& l : x.links) x.path_offset.push_back(p), p += l.path_count;
+  std::uint64_t m = 0;
+  for (const auto& q : x.paths) x.interaction_offset.push_back(m), m += q.interaction_count;
+  return x;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+
+TEST(Dataset, RoundTripEveryField) {
+  const fs::path dir = tmp_dir("roundtrip");
+  const fs::path file = dir / "channels.h5";
+  Builder b;
+  const auto frames = b.frames();
+  const Flat x = flatten(frames);
+  ASSERT_EQ(x.links.size(), 6u);
+  ASSERT_EQ(x.paths.size(), 9u);
+  ASSERT_EQ(x.interactions.size(), 10u);
+  {
+    DatasetWriter w(file, test_header());
+    for (const auto& f : frames) w.append(f);
+    EXPECT_EQ(w.frames(), 3u);
+    EXPECT_EQ(w.links(), 6u);
+    EXPECT_EQ(w.paths(), 9u);
+    w.finish(test_nodes(), test_objects());
+  }
+
+  // Root attributes.
+  EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.0.0");
+  EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
+  EXPECT_EQ(str_attr(file, "/", "git_hash"), "0123456789ab");
+  EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "config")), test_header().config);
+  EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "inputs")), test_header().inputs);
+  EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "provenance")), test_header().provenance);
+  EXPECT_EQ(num_attr<std::uint64_t>(file, "/", "seed", H5T_NATIVE_UINT64), 42u);
+  EXPECT_EQ(num_attr<double>(file, "/", "carrier_hz", H5T_NATIVE_DOUBLE), 5.9e9);
+  EXPECT_EQ(num_attr<double>(file, "/", "bandwidth_hz", H5T_NATIVE_DOUBLE), 10e6);
+  EXPECT_EQ(num_attr<std::uint64_t>(file, "/", "frame_count", H5T_NATIVE_UINT64), 3u);
+  EXPECT_EQ(num_attr<std::uint64_t>(file, "/", "node_count", H5T_NATIVE_UINT64), 3u);
+  EXPECT_EQ(num_attr<std::uint64_t>(file, "/", "link_count", H5T_NATIVE_UINT64), 6u);
+  EXPECT_EQ(num_attr<std::uint64_t>(file, "/", "path_count", H5T_NATIVE_UINT64), 9u);
+  EXPECT_EQ(num_attr<std::uint8_t>(file, "/", "complete", H5T_NATIVE_UINT8), 1u);
+  EXPECT_EQ(str_attr(file, "/links/gain_coherent_db", "units"), "dB");
+  EXPECT_EQ(str_attr(file, "/node_states/position", "units"), "m");
+  EXPECT_FALSE(str_attr(file, "/paths/a", "description").empty());
+
+  // /frames
+  EXPECT_EQ(read_ds<double>(file, "/frames/time_s", H5T_NATIVE_DOUBLE), x.time);
+  EXPECT_EQ(read_ds<std::uint64_t>(file, "/frames/node_offset", H5T_NATIVE_UINT64), (std::vector<std::uint64_t>{0, 3, 6}));
+  EXPECT_EQ(read_ds<std::uint32_t>(file, "/frames/node_count", H5T_NATIVE_UINT32), (std::vector<std::uint32_t>{3, 3, 2}));
+  EXPECT_EQ(read_ds<std::uint64_t>(file, "/frames/link_offset", H5T_NATIVE_UINT64), (std::vector<std::uint64_t>{0, 3, 5}));
+  EXPECT_EQ(read_ds<std::uint32_t>(file, "/frames/link_count", H5T_NATIVE_UINT32), (std::vector<std::uint32_t>{3, 2, 1}));
+
+  // /node_states
+  std::vector<hsize_t> dims;
+  const auto node = read_ds<std::uint32_t>(file, "/node_states/node", H5T_NATIVE_UINT32);
+  const auto pos = read_ds<double>(file, "/node_states/position", H5T_NATIVE_DOUBLE, &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{8, 3}));
+  const auto vel = read_ds<float>(file, "/node_states/velocity", H5T_NATIVE_FLOAT, &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{8, 3}));
+  const auto heading = read_ds<float>(file, "/node_states/heading_deg", H5T_NATIVE_FLOAT);
+  ASSERT_EQ(node.size(), 8u);
+  for (std::size_t i = 0; i < 8; ++i) {
+    const auto& s = x.states[i];
+    EXPECT_EQ(node[i], s.node);
+    EXPECT_EQ(pos[3 * i + 0], s.x);
+    EXPECT_EQ(pos[3 * i + 1], s.y);
+    EXPECT_EQ(pos[3 * i + 2], s.z);
+    EXPECT_EQ(vel[3 * i + 0], s.vx);
+    EXPECT_EQ(vel[3 * i + 1], s.vy);
+    EXPECT_EQ(vel[3 * i + 2], s.vz);
+    EXPECT_EQ(heading[i], s.heading_deg);
+  }
+  EXPECT_EQ(node, (std::vector<std::uint32_t>{0, 1, 2, 0, 1, 2, 0, 2}));
+
+  // /nodes, /objects
+  EXPECT_EQ(read_strings(file, "/nodes/id"), (std::vector<std::string>{"rsu0", "veh.a", "veh.b"}));
+  EXPECT_EQ(read_ds<std::uint8_t>(file, "/nodes/kind", H5T_NATIVE_UINT8), (std::vector<std::uint8_t>{1, 0, 0}));
+  EXPECT_EQ(read_strings(file, "/nodes/vclass"), (std::vector<std::string>{"", "passenger", "truck"}));
+  EXPECT_EQ(read_strings(file, "/nodes/vtype"), (std::vector<std::string>{"", "DEFAULT_VEHTYPE", "lorry"}));
+  EXPECT_EQ(read_ds<float>(file, "/nodes/dimensions", H5T_NATIVE_FLOAT, &dims),
+            (std::vector<float>{0, 0, 0, 4.5f, 1.8f, 1.5f, 12.f, 2.5f, 3.75f}));
+  EXPECT_EQ(dims, (std::vector<hsize_t>{3, 3}));
+  EXPECT_EQ(read_strings(file, "/objects/name"), test_objects());
+
+  // /links
+  const auto frame = read_ds<std::uint32_t>(file, "/links/frame", H5T_NATIVE_UINT32);
+  const auto tx = read_ds<std::uint32_t>(file, "/links/tx", H5T_NATIVE_UINT32);
+  const auto rx = read_ds<std::uint32_t>(file, "/links/rx", H5T_NATIVE_UINT32);
+  const auto los = read_ds<std::uint8_t>(file, "/links/los_class", H5T_NATIVE_UINT8);
+  const auto flags = read_ds<std::uint8_t>(file, "/links/flags", H5T_NATIVE_UINT8);
+  const auto blockers = read_ds<std::uint16_t>(file, "/links/blocker_count", H5T_NATIVE_UINT16);
+  const auto gc = read_ds<float>(file, "/links/gain_coherent_db", H5T_NATIVE_FLOAT);
+  const auto gi = read_ds<float>(file, "/links/gain_incoherent_db", H5T_NATIVE_FLOAT);
+  const auto fd = read_ds<double>(file, "/links/first_delay_s", H5T_NATIVE_DOUBLE);
+  const auto rms = read_ds<float>(file, "/links/rms_delay_spread_s", H5T_NATIVE_FLOAT);
+  const auto pc = read_ds<std::uint32_t>(file, "/links/path_count", H5T_NATIVE_UINT32);
+  const auto po = read_ds<std::uint64_t>(file, "/links/path_offset", H5T_NATIVE_UINT64);
+  ASSERT_EQ(tx.size(), 6u);
+  EXPECT_EQ(frame, x.link_frame);
+  EXPECT_EQ(frame, (std::vector<std::uint32_t>{0, 0, 0, 1, 1, 2}));
+  EXPECT_EQ(pc, (std::vector<std::uint32_t>{1, 3, 0, 1, 3, 1}));
+  EXPECT_EQ(po, (std::vector<std::uint64_t>{0, 1, 4, 4, 5, 8}));
+  for (std::size_t i = 0; i < 6; ++i) {
+    const auto& l = x.links[i];
+    EXPECT_EQ(tx[i], l.tx);
+    EXPECT_EQ(rx[i], l.rx);
+    EXPECT_EQ(los[i], l.los_class);
+    EXPECT_EQ(flags[i], l.flags);
+    EXPECT_EQ(blockers[i], l.blocker_count);
+    EXPECT_EQ(gc[i], l.gain_coherent_db);
+    EXPECT_EQ(gi[i], l.gain_incoherent_db);
+    EXPECT_EQ(fd[i], l.first_delay_s);
+    EXPECT_EQ(rms[i], l.rms_delay_spread_s);
+    EXPECT_EQ(pc[i], l.path_count);
+    EXPECT_EQ(po[i], x.path_offset[i]);
+  }
+  EXPECT_TRUE(std::isinf(gc[2]) && gc[2] < 0);
+  EXPECT_EQ(flags[2], kLinkOutOfRange);
+  EXPECT_EQ(flags[3], kLinkCached);
+
+  // /paths
+  const auto a = read_complex(file, "/paths/a");
+  const auto tau = read_ds<double>(file, "/paths/tau_s", H5T_NATIVE_DOUBLE);
+  const auto aod = read_ds<float>(file, "/paths/aod", H5T_NATIVE_FLOAT, &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{9, 2}));
+  const auto aoa = read_ds<float>(file, "/paths/aoa", H5T_NATIVE_FLOAT);
+  const auto dop = read_ds<float>(file, "/paths/doppler_hz", H5T_NATIVE_FLOAT);
+  const auto ic = read_ds<std::uint8_t>(file, "/paths/interaction_count", H5T_NATIVE_UINT8);
+  const auto io = read_ds<std::uint64_t>(file, "/paths/interaction_offset", H5T_NATIVE_UINT64);
+  ASSERT_EQ(a.size(), 9u);
+  EXPECT_EQ(ic, (std::vector<std::uint8_t>{0, 1, 2, 0, 1, 2, 0, 1, 3}));
+  EXPECT_EQ(io, (std::vector<std::uint64_t>{0, 0, 1, 3, 3, 4, 6, 6, 7}));
+  for (std::size_t j = 0; j < 9; ++j) {
+    const auto& p = x.paths[j];
+    EXPECT_EQ(a[j], p.a);
+    EXPECT_EQ(tau[j], p.tau_s);
+    EXPECT_EQ(aod[2 * j], p.theta_t);
+    EXPECT_EQ(aod[2 * j + 1], p.phi_t);
+    EXPECT_EQ(aoa[2 * j], p.theta_r);
+    EXPECT_EQ(aoa[2 * j + 1], p.phi_r);
+    EXPECT_EQ(dop[j], p.doppler_hz);
+    EXPECT_EQ(ic[j], p.interaction_count);
+    EXPECT_EQ(io[j], x.interaction_offset[j]);
+  }
+
+  // /interactions
+  const auto type = read_ds<std::uint8_t>(file, "/interactions/type", H5T_NATIVE_UINT8);
+  const auto object = read_ds<std::uint32_t>(file, "/interactions/object", H5T_NATIVE_UINT32);
+  const auto point = read_ds<float>(file, "/interactions/point", H5T_NATIVE_FLOAT, &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{10, 3}));
+  EXPECT_EQ(object, (std::vector<std::uint32_t>{0, 1, 2, 4, 5, 0, 2, 0, 1, 2}));
+  ASSERT_EQ(type.size(), 10u);
+  for (std::size_t m = 0; m < 10; ++m) {
+    EXPECT_EQ(type[m], x.interactions[m].type);
+    EXPECT_EQ(type[m], 1 + m % 4);
+    EXPECT_EQ(point[3 * m + 0], static_cast<float>(m));
+    EXPECT_EQ(point[3 * m + 1], 2.f * static_cast<float>(m));
+    EXPECT_EQ(point[3 * m + 2], 0.5f * static_cast<float>(m));
+  }
+
+  // /cfr
+  const auto h = read_complex(file, "/cfr/h", &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{6, kK}));
+  EXPECT_EQ(h, x.cfr);
+  EXPECT_EQ(h[5 * kK + 3], std::complex<float>(53.f, -1.5f));
+  EXPECT_EQ(num_attr<std::uint32_t>(file, "/cfr", "subcarriers", H5T_NATIVE_UINT32), kK);
+  EXPECT_EQ(num_attr<double>(file, "/cfr", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE), 156250.0);
+  EXPECT_EQ(num_attr<double>(file, "/cfr", "carrier_hz", H5T_NATIVE_DOUBLE), 5.9e9);
+
+  // Storage: chunked along the first axis, shuffle + deflate, extendible.
+  {
+    H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    H5 d{H5Dopen2(f.id, "/paths/aod", H5P_DEFAULT), H5Dclose};
+    H5 plist{H5Dget_create_plist(d.id), H5Pclose};
+    EXPECT_EQ(H5Pget_layout(plist.id), H5D_CHUNKED);
+    hsize_t chunk[2] = {0, 0};
+    EXPECT_EQ(H5Pget_chunk(plist.id, 2, chunk), 2);
+    EXPECT_EQ(chunk[0], 16384u);
+    EXPECT_EQ(chunk[1], 2u);
+    ASSERT_EQ(H5Pget_nfilters(plist.id), 2);
+    EXPECT_EQ(H5Pget_filter2(plist.id, 0, nullptr, nullptr, nullptr, 0, nullptr, nullptr), H5Z_FILTER_SHUFFLE);
+    EXPECT_EQ(H5Pget_filter2(plist.id, 1, nullptr, nullptr, nullptr, 0, nullptr, nullptr), H5Z_FILTER_DEFLATE);
+    H5 s{H5Dget_space(d.id), H5Sclose};
+    hsize_t cur[2], max[2];
+    H5Sget_simple_extent_dims(s.id, cur, max);
+    EXPECT_EQ(max[0], H5S_UNLIMITED);
+  }
+
+  const auto problems = validate_dataset(file.string());
+  EXPECT_TRUE(problems.empty()) << joined(problems);
+
+  const auto info = dataset_info(file.string());
+  EXPECT_EQ(info["schema_version"], "1.0.0");
+  EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
+  EXPECT_EQ(info["frames"], 3);
+  EXPECT_EQ(info["time_start_s"], 0.0);
+  EXPECT_EQ(info["time_end_s"], 0.2);
+  EXPECT_EQ(info["nodes"], 3);
+  EXPECT_EQ(info["vehicles"], 2);
+  EXPECT_EQ(info["rsus"], 1);
+  EXPECT_EQ(info["links"], 6);
+  EXPECT_EQ(info["paths"], 9);
+  EXPECT_EQ(info["interactions"], 10);
+  EXPECT_EQ(info["objects"], 6);
+  EXPECT_EQ(info["los_counts"]["LOS"], 2);
+  EXPECT_EQ(info["los_counts"]["NLOSV"], 2);
+  EXPECT_EQ(info["los_counts"]["NLOS"], 2);
+  EXPECT_EQ(info["cached_links"], 1);
+  EXPECT_EQ(info["out_of_range_links"], 1);
+  EXPECT_DOUBLE_EQ(info["mean_paths_per_link"].get<double>(), 9.0 / 6.0);
+  EXPECT_DOUBLE_EQ(info["mean_paths_per_in_range_link"].get<double>(), 9.0 / 5.0);
+  EXPECT_EQ(info["has_cfr"], true);
+  EXPECT_EQ(info["subcarriers"], kK);
+  EXPECT_EQ(info["complete"], true);
+  EXPECT_EQ(info["file_bytes"].get<std::uint64_t>(), fs::file_size(file));
+  EXPECT_DOUBLE_EQ(info["bytes_per_link"].get<double>(), static_cast<double>(fs::file_size(file)) / 6.0);
+  const std::string text = format_dataset_info(info);
+  EXPECT_NE(text.find("frames        3"), std::string::npos) << text;
+  EXPECT_NE(text.find("2 vehicles, 1 RSUs"), std::string::npos) << text;
+  EXPECT_NE(text.find("NLOSV 2 (33.3 %)"), std::string::npos) << text;
+}
+
+TEST(Dataset, NoCfrGroupWithoutSubcarriers) {
+  const fs::path file = tmp_dir("nocfr") / "channels.h5";
+  Builder b;
+  auto frames = b.frames();
+  DatasetHeader h = test_header();
+  h.cfr_subcarriers = 0;
+  {
+    DatasetWriter w(file, h);
+    for (auto& f : frames) {
+      f.cfr.clear();
+      w.append(f);
+    }
+    w.finish(test_nodes(), test_objects());
+  }
+  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  EXPECT_LE(H5Lexists(f.id, "cfr", H5P_DEFAULT), 0);
+  EXPECT_TRUE(validate_dataset(file.string()).empty()) << joined(validate_dataset(file.string()));
+  EXPECT_EQ(dataset_info(file.string())["has_cfr"], false);
+}
+
+TEST(Dataset, WriterRejectsInconsistentRecords) {
+  const fs::path dir = tmp_dir("reject");
+  Builder b;
+  const auto good = b.frames();
+  DatasetWriter w(dir / "x.h5", test_header());
+  auto expect_reject = [&](FrameRecord f, const char* what) {
+    EXPECT_THROW(w.append(f), std::invalid_argument) << what;
+  };
+  {
+    auto f = good[0];
+    f.links[0].path_count = 2;  // sums to 5, the frame has 4 paths
+    expect_reject(f, "path count sum");
+  }
+  {
+    auto f = good[0];
+    f.paths[0].interaction_count = 1;
+    expect_reject(f, "interaction count sum");
+  }
+  {
+    auto f = good[0];
+    f.cfr.pop_back();
+    expect_reject(f, "cfr size");
+  }
+  {
+    auto f = good[0];
+    std::swap(f.links[0], f.links[1]);  // (0,2) before (0,1)
+    expect_reject(f, "links not sorted");
+  }
+  {
+    auto f = good[0];
+    std::swap(f.links[2].tx, f.links[2].rx);
+    expect_reject(f, "tx > rx");
+  }
+  {
+    auto f = good[2];
+    f.links[0].tx = 1;  // node 1 is absent from frame 2
+    f.links[0].rx = 2;
+    expect_reject(f, "absent node");
+  }
+  {
+    auto f = good[0];
+    std::swap(f.nodes[0], f.nodes[1]);
+    expect_reject(f, "node states unsorted");
+  }
+  {
+    auto f = good[0];
+    f.links[0].los_class = 3;
+    expect_reject(f, "los class");
+  }
+  EXPECT_EQ(w.frames(), 0u);  // nothing was appended
+  w.append(good[0]);
+  EXPECT_EQ(w.frames(), 1u);
+  {
+    auto f = good[1];
+    f.time_s = -1;
+    expect_reject(f, "time going backwards");
+  }
+  // finish() checks the tables cover every node and object used.
+  EXPECT_THROW(w.finish(std::vector<NodeInfo>(2), test_objects()), std::invalid_argument);
+  EXPECT_THROW(w.finish(test_nodes(), {"a", "b"}), std::invalid_argument);
+  w.finish(test_nodes(), test_objects());
+  EXPECT_THROW(w.append(good[1]), std::runtime_error);
+  EXPECT_TRUE(validate_dataset((dir / "x.h5").string()).empty());
+}
+
+TEST(Dataset, CorruptFilesAreRejected) {
+  const fs::path dir = tmp_dir("corrupt");
+  const fs::path good = dir / "good.h5";
+  write_test_dataset(good);
+  ASSERT_TRUE(validate_dataset(good.string()).empty()) << joined(validate_dataset(good.string()));
+  auto copy = [&](const std::string& name) {
+    const fs::path p = dir / name;
+    fs::copy_file(good, p, fs::copy_options::overwrite_existing);
+    return p;
+  };
+
+  {  // (a) a LoS class outside the code table
+    const fs::path p = copy("los7.h5");
+    poke_u64(p, "/links/los_class", 1, 7);
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "/links/los_class")) << joined(problems);
+  }
+  {  // (b) a missing dataset
+    const fs::path p = copy("notau.h5");
+    {
+      H5 f{H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+      ASSERT_GE(H5Ldelete(f.id, "/paths/tau_s", H5P_DEFAULT), 0);
+    }
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "/paths/tau_s")) << joined(problems);
+  }
+  {  // (c) an unsupported major version
+    const fs::path p = copy("v2.h5");
+    set_str_attr(p, "schema_version", "2.0.0");
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "schema_version")) << joined(problems);
+    EXPECT_TRUE(mentions(problems, "major version 2")) << joined(problems);
+  }
+  {  // (d) a path offset that is not the running sum of path counts
+    const fs::path p = copy("offset.h5");
+    poke_u64(p, "/links/path_offset", 2, 5);
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "/links/path_offset")) << joined(problems);
+  }
+  {  // (e) a truncated file
+    const fs::path p = dir / "truncated.h5";
+    const std::string bytes = read_bytes(good);
+    write_bytes(p, bytes.substr(0, bytes.size() / 2));
+    const auto problems = validate_dataset(p.string());
+    ASSERT_FALSE(problems.empty());
+    EXPECT_TRUE(mentions(problems, p.string())) << joined(problems);
+    EXPECT_THROW(dataset_info(p.string()), InputError);
+  }
+  {  // (f) a file whose writer never finished
+    const fs::path p = dir / "unfinished.h5";
+    write_test_dataset(p, /*finish=*/false);
+    EXPECT_FALSE(has_attr(p, "complete"));
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "complete")) << joined(problems);
+    // The frames written so far are there and readable.
+    EXPECT_EQ(read_ds<double>(p, "/frames/time_s", H5T_NATIVE_DOUBLE).size(), 3u);
+    EXPECT_EQ(dataset_info(p.string())["complete"], false);
+  }
+  {  // more: a wrong root count, a node reference out of range, a frame index off its range
+    const fs::path p = copy("more.h5");
+    poke_u64(p, "/node_states/node", 7, 9);
+    poke_u64(p, "/links/frame", 4, 2);
+    poke_u64(p, "/interactions/type", 0, 0);
+    const auto problems = validate_dataset(p.string());
+    EXPECT_TRUE(mentions(problems, "/node_states/node")) << joined(problems);
+    EXPECT_TRUE(mentions(problems, "/links/frame")) << joined(problems);
+    EXPECT_TRUE(mentions(problems, "/interactions/type")) << joined(problems);
+  }
+  {  // not HDF5 at all, and a missing file: one problem naming the path
+    const fs::path p = dir / "text.h5";
+    write_bytes(p, "hello, not a dataset\n");
+    auto problems = validate_dataset(p.string());
+    ASSERT_EQ(problems.size(), 1u);
+    EXPECT_TRUE(mentions(problems, p.string()));
+    problems = validate_dataset((dir / "absent.h5").string());
+    ASSERT_EQ(problems.size(), 1u);
+    EXPECT_TRUE(mentions(problems, "absent.h5"));
+    try {
+      dataset_info((dir / "absent.h5").string());
+      ADD_FAILURE() << "dataset_info accepted a missing file";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), (dir / "absent.h5").string());
+    }
+  }
+}
+
+// Same records, same header -> byte-identical files: object time stamps are
+// disabled and the writer's sequence of HDF5 calls is a function of the input.
+TEST(Dataset, DeterministicBytes) {
+  const fs::path dir = tmp_dir("determinism");
+  write_test_dataset(dir / "a.h5");
+  write_test_dataset(dir / "b.h5");
+  const std::string a = read_bytes(dir / "a.h5"), b = read_bytes(dir / "b.h5");
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a.size(), b.size());
+  EXPECT_TRUE(a == b) << "files differ";
+}
+
+TEST(Dataset, EmbeddedSchemaMatchesSourceFile) {
+  const std::string on_disk = read_bytes(source_dir() / "schemas" / "raysweep_dataset.schema.json");
+  EXPECT_EQ(dataset_schema_json(), on_disk);
+  EXPECT_EQ(dataset_schema().at("schema_version"), kDatasetSchemaVersion);
+  EXPECT_EQ(dataset_schema().at("format"), kDatasetFormat);
+}
+
+// ---------------------------------------------------------------------------
+// Frame blocks.
+
+namespace {
+
+template <class T>
+auto bits(T v) {
+  if constexpr (std::is_same_v<T, float>)
+    return std::bit_cast<std::uint32_t>(v);
+  else if constexpr (std::is_same_v<T, double>)
+    return std::bit_cast<std::uint64_t>(v);
+  else
+    return v;
+}
+
+void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecord>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t f = 0; f < a.size(); ++f) {
+    const auto &x = a[f], &y = b[f];
+    EXPECT_EQ(bits(x.time_s), bits(y.time_s));
+    ASSERT_EQ(x.nodes.size(), y.nodes.size());
+    for (std::size_t i = 0; i < x.nodes.size(); ++i) {
+      const auto &p = x.nodes[i], &q = y.nodes[i];
+      EXPECT_EQ(p.node, q.node);
+      EXPECT_EQ(bits(p.x), bits(q.x));
+      EXPECT_EQ(bits(p.y), bits(q.y));
+      EXPECT_EQ(bits(p.z), bits(q.z));
+      EXPECT_EQ(bits(p.vx), bits(q.vx));
+      EXPECT_EQ(bits(p.vy), bits(q.vy));
+      EXPECT_EQ(bits(p.vz), bits(q.vz));
+      EXPECT_EQ(bits(p.heading_deg), bits(q.heading_deg));
+    }
+    ASSERT_EQ(x.links.size(), y.links.size());
+    for (std::size_t i = 0; i < x.links.size(); ++i) {
+      const auto &p = x.links[i], &q = y.links[i];
+      EXPECT_EQ(p.tx, q.tx);
+      EXPECT_EQ(p.rx, q.rx);
+      EXPECT_EQ(p.los_class, q.los_class);
+      EXPECT_EQ(p.flags, q.flags);
+      EXPECT_EQ(p.blocker_count, q.blocker_count);
+      EXPECT_EQ(bits(p.gain_coherent_db), bits(q.gain_coherent_db));
+      EXPECT_EQ(bits(p.gain_incoherent_db), bits(q.gain_incoherent_db));
+      EXPECT_EQ(bits(p.first_delay_s), bits(q.first_delay_s));
+      EXPECT_EQ(bits(p.rms_delay_spread_s), bits(q.rms_delay_spread_s));
+      EXPECT_EQ(p.path_count, q.path_count);
+    }
+    ASSERT_EQ(x.paths.size(), y.paths.size());
+    for (std::size_t i = 0; i < x.paths.size(); ++i) {
+      const auto &p = x.paths[i], &q = y.paths[i];
+      EXPECT_EQ(bits(p.a.real()), bits(q.a.real()));
+      EXPECT_EQ(bits(p.a.imag()), bits(q.a.imag()));
+      EXPECT_EQ(bits(p.tau_s), bits(q.tau_s));
+      EXPECT_EQ(bits(p.theta_t), bits(q.theta_t));
+      EXPECT_EQ(bits(p.phi_t), bits(q.phi_t));
+      EXPECT_EQ(bits(p.theta_r), bits(q.theta_r));
+      EXPECT_EQ(bits(p.phi_r), bits(q.phi_r));
+      EXPECT_EQ(bits(p.doppler_hz), bits(q.doppler_hz));
+      EXPECT_EQ(p.interaction_count, q.interaction_count);
+    }
+    ASSERT_EQ(x.interactions.size(), y.interactions.size());
+    for (std::size_t i = 0; i < x.interactions.size(); ++i) {
+      const auto &p = x.interactions[i], &q = y.interactions[i];
+      EXPECT_EQ(p.type, q.type);
+      EXPECT_EQ(p.object, q.object);
+      EXPECT_EQ(bits(p.x), bits(q.x));
+      EXPECT_EQ(bits(p.y), bits(q.y));
+      EXPECT_EQ(bits(p.z), bits(q.z));
+    }
+    ASSERT_EQ(x.cfr.size(), y.cfr.size());
+    for (std::size_t i = 0; i < x.cfr.size(); ++i) {
+      EXPECT_EQ(bits(x.cfr[i].real()), bits(y.cfr[i].real()));
+      EXPECT_EQ(bits(x.cfr[i].imag()), bits(y.cfr[i].imag()));
+    }
+  }
+}
+
+}  // namespace
+
+TEST(FrameBlock, RoundTripIsExact) {
+  const fs::path dir = tmp_dir("block");
+  Builder b;
+  auto frames = b.frames();
+  frames.push_back(FrameRecord{});  // an empty frame
+  frames.back().time_s = 0.3;
+  frames[0].nodes[1].x = 389123.456789012345;  // full double precision
+  frames[0].paths[0].doppler_hz = -0.0f;
+  frames[1].links[0].rms_delay_spread_s = std::numeric_limits<float>::quiet_NaN();
+  frames[1].links[1].blocker_count = 65535;
+  frames[1].interactions[0].object = 0xfffffffeu;
+  const fs::path p = dir / "frames-000001.blk";
+  write_frame_block(p, frames);
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  const std::string bytes = read_bytes(p);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK1\n"));
+  const auto back = read_frame_block(p);
+  expect_same(frames, back);
+  EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));
+  EXPECT_TRUE(std::signbit(back[0].paths[0].doppler_hz));
+
+  // An empty block round-trips too, and rewriting replaces the old block.
+  write_frame_block(p, {});
+  EXPECT_TRUE(read_frame_block(p).empty());
+}
+
+TEST(FrameBlock, TruncatedOrCorruptBlocksAreRejected) {
+  const fs::path dir = tmp_dir("blockbad");
+  Builder b;
+  const auto frames = b.frames();
+  const fs::path good = dir / "good.blk";
+  write_frame_block(good, frames);
+  const std::string bytes = read_bytes(good);
+  auto expect_rejected = [&](const fs::path& p, const char* what) {
+    try {
+      read_frame_block(p);
+      ADD_FAILURE() << what << ": block accepted";
+    } catch (const InputError& e) {
+      EXPECT_EQ(e.file(), p.string()) << what;
+      EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << what;
+    }
+  };
+  for (std::size_t cut : {bytes.size() / 2, bytes.size() - 1, std::size_t{12}, std::size_t{0}}) {
+    const fs::path p = dir / ("cut" + std::to_string(cut) + ".blk");
+    write_bytes(p, bytes.substr(0, cut));
+    expect_rejected(p, "truncated");
+  }
+  for (std::size_t at : {std::size_t{3}, std::size_t{9}, bytes.size() / 3, bytes.size() - 2}) {
+    std::string flipped = bytes;
+    flipped[at] = static_cast<char>(flipped[at] ^ 0x10);
+    const fs::path p = dir / ("flip" + std::to_string(at) + ".blk");
+    write_bytes(p, flipped);
+    expect_rejected(p, "flipped byte");
+  }
+  expect_rejected(dir / "missing.blk", "missing");
+}
+
+// ---------------------------------------------------------------------------
+// Python reader.
+
+TEST(Dataset, PythonReader) {
+  if (run_command("/usr/bin/python3 -c 'import h5py, numpy'").exit_code != 0)
+    GTEST_SKIP() << "/usr/bin/python3 cannot import h5py";
+  const fs::path dir = tmp_dir("python");
+  const fs::path file = dir / "channels.h5";
+  write_test_dataset(file);
+  Builder b;
+  const auto frames = b.frames();
+  const Flat x = flatten(frames);
+
+  // Expected values for the script, from the records.
+  auto gain = [](float g) { return std::isinf(g) ? nlohmann::json(nullptr) : nlohmann::json(g); };
+  nlohmann::json e;
+  e["frames"] = 3;
+  e["links"] = 6;
+  e["paths"] = 9;
+  e["times"] = x.time;
+  e["node_ids"] = {"rsu0", "veh.a", "veh.b"};
+  e["node_kinds"] = {1, 0, 0};
+  e["vclasses"] = {"", "passenger", "truck"};
+  e["config"] = test_header().config;
+  e["seed"] = 42;
+  e["frame_node_counts"] = x.node_count;
+  e["frame_link_counts"] = x.link_count;
+  // Pair (veh.b, rsu0) = nodes (0, 2): links 1 (frame 0) and 5 (frame 2).
+  nlohmann::json pair;
+  pair["a"] = "veh.b";
+  pair["b"] = "rsu0";
+  for (std::size_t i = 0; i < x.links.size(); ++i) {
+    if (x.links[i].tx != 0 || x.links[i].rx != 2) continue;
+    pair["link"].push_back(i);
+    pair["frame"].push_back(x.link_frame[i]);
+    pair["time_s"].push_back(x.time[x.link_frame[i]]);
+    pair["los_class"].push_back(x.links[i].los_class);
+    pair["gain_coherent_db"].push_back(gain(x.links[i].gain_coherent_db));
+    pair["path_count"].push_back(x.links[i].path_count);
+    pair["first_delay_s"].push_back(x.links[i].first_delay_s);
+  }
+  e["pair"] = pair;
+  // Paths of link 4: paths 5..7.
+  nlohmann::json paths;
+  paths["link"] = 4;
+  for (std::size_t j = x.path_offset[4]; j < x.path_offset[4] + x.links[4].path_count; ++j) {
+    const auto& p = x.paths[j];
+    paths["a_re"].push_back(p.a.real());
+    paths["a_im"].push_back(p.a.imag());
+    paths["tau_s"].push_back(p.tau_s);
+    paths["aod"].push_back({p.theta_t, p.phi_t});
+    paths["doppler_hz"].push_back(p.doppler_hz);
+    nlohmann::json its = nlohmann::json::array();
+    for (std::uint64_t m = x.interaction_offset[j]; m < x.interaction_offset[j] + p.interaction_count; ++m)
+      its.push_back({x.interactions[m].type, x.interactions[m].object,
+                     {x.interactions[m].x, x.interactions[m].y, x.interactions[m].z}});
+    paths["interactions"].push_back(its);
+  }
+  e["paths_of_link"] = paths;
+  e["out_of_range_link"] = 2;
+  e["cfr_link"] = 5;
+  for (std::uint32_t k = 0; k < kK; ++k) {
+    e["cfr_re"].push_back(x.cfr[5 * kK + k].real());
+    e["cfr_im"].push_back(x.cfr[5 * kK + k].imag());
+  }
+  // LinkDataset: labels are the LoS classes; distance of link 0 (rsu0-veh.a in frame 0).
+  for (const auto& l : x.links) e["labels"].push_back(l.los_class);
+  const auto& s0 = frames[0].nodes[0];
+  const auto& s1 = frames[0].nodes[1];
+  e["distance_link0"] = std::sqrt((s0.x - s1.x) * (s0.x - s1.x) + (s0.y - s1.y) * (s0.y - s1.y) + (s0.z - s1.z) * (s0.z - s1.z));
+  const fs::path expected = dir / "expected.json";
+  raysweep::test::write_text(expected, e.dump(2));
+
+  const std::string py = "PYTHONPATH='" + (source_dir() / "python").string() + "' /usr/bin/python3 ";
+  auto r = run_command(py + "'" + (source_dir() / "tests" / "python" / "test_reader.py").string() + "' '" +
+                       file.string() + "' '" + expected.string() + "' '" + (dir / "scratch").string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+
+  const fs::path png = dir / "gain.png";
+  r = run_command(py + "'" + (source_dir() / "python" / "example_dataset.py").string() + "' '" + file.string() +
+                  "' --png '" + png.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("frames        3"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("NLOSV"), std::string::npos) << r.output;
+  ASSERT_TRUE(fs::exists(png));
+  EXPECT_GT(fs::file_size(png), 1000u);
+  EXPECT_EQ(read_bytes(png).substr(1, 3), "PNG");
+}
