@@ -280,7 +280,9 @@ TEST(TracerScene, RaysThroughSharedEdgesAndVerticesCrossOnce) {
       const auto dir = tracer::normalize(target - origin);
       ASSERT_TRUE(scene.all_hits(origin, dir, 0, 100, hits, 16));
       EXPECT_EQ(hits.size(), 1u) << "towards " << target[0] << "," << target[1] << "," << target[2];
-      if (!hits.empty()) EXPECT_NEAR(hits[0].t, tracer::norm(target - origin), 1e-4);
+      if (!hits.empty()) {
+        EXPECT_NEAR(hits[0].t, tracer::norm(target - origin), 1e-4);
+      }
     }
   }
 }

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include <unordered_map>
 #include <unordered_set>
 
 namespace raysweep::tracer {
@@ -348,6 +349,16 @@ void enumerate_all(const TraceScene& scene, int depth, std::vector<FaceRef>& cur
 
 Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes, const TracerConfig& cfg,
                         const RadioConfig& radio) {
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  const auto n = static_cast<std::uint32_t>(nodes.size());
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (std::uint32_t j = i + 1; j < n; ++j) pairs.emplace_back(i, j);
+  return trace_pairs(scene, nodes, pairs, cfg, radio);
+}
+
+Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
+                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& cfg,
+                     const RadioConfig& radio) {
   validate(cfg, radio);
   for (const auto& n : nodes)
     for (double c : n.position)
@@ -355,13 +366,27 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
   const Electromagnetics em(scene.material_names(), radio, cfg.materials);
   const auto n = static_cast<std::uint32_t>(nodes.size());
   Snapshot snap;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
-  for (std::uint32_t i = 0; i < n; ++i)
-    for (std::uint32_t j = i + 1; j < n; ++j) pairs.emplace_back(i, j);
+  // Which pair slot each (i, j) feeds; sources shoot only when they have a
+  // pair to serve. A pair's candidates come from its own two ends, so a pair
+  // traced alone gets exactly the paths it gets in a full snapshot.
+  std::unordered_map<std::uint64_t, std::size_t> slot;
+  slot.reserve(pairs.size());
+  std::vector<std::uint32_t> sources;
+  std::vector<unsigned char> is_source(n, 0);
+  for (std::size_t p = 0; p < pairs.size(); ++p) {
+    auto [i, j] = pairs[p];
+    if (i >= j || j >= n) throw std::invalid_argument("trace_pairs: pair (" + std::to_string(i) + ", " +
+                                                      std::to_string(j) + ") is not i < j < node count");
+    if (!slot.emplace(static_cast<std::uint64_t>(i) << 32 | j, p).second)
+      throw std::invalid_argument("trace_pairs: pair (" + std::to_string(i) + ", " + std::to_string(j) + ") twice");
+    for (auto e : {i, j}) {
+      if (is_source[e]) continue;
+      is_source[e] = 1;
+      sources.push_back(e);
+    }
+  }
+  std::sort(sources.begin(), sources.end());
   std::vector<std::vector<std::vector<FaceRef>>> candidates(pairs.size());
-  auto pair_index = [n](std::uint32_t i, std::uint32_t j) {
-    return static_cast<std::size_t>(i) * n - static_cast<std::size_t>(i) * (i + 1) / 2 + (j - i - 1);
-  };
 
   std::uint64_t search_rays = 0;
   if (cfg.specular && cfg.max_depth > 0 && n > 1) {
@@ -379,8 +404,8 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
         std::uint64_t rays = 0;
       };
       tbb::enumerable_thread_specific<Local> locals;
-      tbb::parallel_for(std::size_t{0}, n * chunks, [&](std::size_t task) {
-        const auto src = static_cast<std::uint32_t>(task / chunks);
+      tbb::parallel_for(std::size_t{0}, sources.size() * chunks, [&](std::size_t task) {
+        const auto src = sources[task / chunks];
         const std::size_t c = task % chunks;
         auto& local = locals.local();
         std::vector<CandidateKey> out;
@@ -391,12 +416,11 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
       for (auto& local : locals) {
         search_rays += local.rays;
         for (auto& [src, k] : local.found) {
-          if (src < k.other) {
-            candidates[pair_index(src, k.other)].push_back(std::move(k.faces));
-          } else {
-            std::reverse(k.faces.begin(), k.faces.end());
-            candidates[pair_index(k.other, src)].push_back(std::move(k.faces));
-          }
+          const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
+          const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
+          if (it == slot.end()) continue;
+          if (src > k.other) std::reverse(k.faces.begin(), k.faces.end());
+          candidates[it->second].push_back(std::move(k.faces));
         }
       }
       // Thread-local order varies; the sorted set does not.

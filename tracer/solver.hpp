@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "tracer/config.hpp"
@@ -82,6 +83,13 @@ class Electromagnetics {
 // any number of threads.
 Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes, const TracerConfig& config,
                         const RadioConfig& radio);
+
+// Traces only the listed pairs (i < j, each once), in that order. A pair's
+// result equals its result in trace_snapshot: candidates come from its two
+// ends only. Sweeps use it to retrace the pairs a moving vehicle touched.
+Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
+                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& config,
+                     const RadioConfig& radio);
 
 // The exact path from `from` to `to` reflecting on `faces` in order, or
 // nullopt when it does not exist (off a face, blocked, or over the slab cap:

@@ -1,0 +1,328 @@
+#include "generators/sweep.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace raysweep::generators {
+
+using tracer::Vec3;
+using tracer::operator+;
+using tracer::operator-;
+using tracer::operator*;
+using tracer::norm;
+
+const char* cache_mode_name(CacheMode m) {
+  switch (m) {
+    case CacheMode::none: return "none";
+    case CacheMode::per_pair: return "per_pair";
+    case CacheMode::global: return "global";
+  }
+  return "?";
+}
+
+CacheMode parse_cache_mode(const std::string& s) {
+  if (s == "none") return CacheMode::none;
+  if (s == "per_pair") return CacheMode::per_pair;
+  if (s == "global") return CacheMode::global;
+  throw std::invalid_argument("cache mode '" + s + "': expected none, per_pair or global");
+}
+
+namespace {
+
+constexpr double kDeg = tracer::kPi / 180.0;
+
+double yaw_of(double heading_deg) { return (90.0 - heading_deg) * kDeg; }
+
+struct Sphere {
+  Vec3 c;
+  double r;
+};
+
+Sphere bounding_sphere(const SweepVehicle& v) {
+  const double yaw = yaw_of(v.heading_deg);
+  const Vec3 fwd{std::cos(yaw), std::sin(yaw), 0};
+  const Vec3 c = v.position - (0.5 * v.length_m) * fwd + Vec3{0, 0, 0.5 * v.height_m};
+  return {c, 0.5 * std::sqrt(v.length_m * v.length_m + v.width_m * v.width_m + v.height_m * v.height_m)};
+}
+
+bool same_pose(const SweepVehicle& a, const SweepVehicle& b) {
+  return a.model == b.model && a.position == b.position && a.heading_deg == b.heading_deg && a.velocity == b.velocity;
+}
+
+// Distance from p to the segment ab.
+double segment_distance(const Vec3& p, const Vec3& a, const Vec3& b) {
+  const Vec3 ab = b - a;
+  const double len2 = tracer::dot(ab, ab);
+  const double t = len2 > 0 ? std::clamp(tracer::dot(p - a, ab) / len2, 0.0, 1.0) : 0.0;
+  return norm(p - (a + t * ab));
+}
+
+std::uint64_t pair_key(std::uint32_t a, std::uint32_t b) { return static_cast<std::uint64_t>(a) << 32 | b; }
+
+}  // namespace
+
+Sweep::Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, const tracer::RadioConfig& radio,
+             const SweepOptions& options, std::vector<SweepRsu> rsus)
+    : scene_(scene), tracer_(tracer), radio_(radio), options_(options), rsus_(std::move(rsus)) {
+  if (options_.block_frames == 0) throw std::invalid_argument("sweep: block_frames must be at least 1");
+  if (!(options_.d0_m >= 0) || !(options_.coherence_time_s >= 0) || !(options_.cache_margin_m >= 0))
+    throw std::invalid_argument("sweep: d0, coherence time and cache margin must be >= 0");
+  std::sort(rsus_.begin(), rsus_.end(), [](const SweepRsu& a, const SweepRsu& b) { return a.node < b.node; });
+}
+
+std::vector<std::string> Sweep::object_names(const std::vector<std::string>& node_ids) const {
+  auto names = scene_.object_names();
+  names.resize(scene_.static_object_count());
+  names.insert(names.end(), node_ids.begin(), node_ids.end());
+  return names;
+}
+
+FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
+  std::sort(vehicles.begin(), vehicles.end(),
+            [](const SweepVehicle& a, const SweepVehicle& b) { return a.node < b.node; });
+  for (std::size_t i = 1; i < vehicles.size(); ++i)
+    if (vehicles[i].node == vehicles[i - 1].node)
+      throw std::invalid_argument("sweep: node " + std::to_string(vehicles[i].node) + " twice in one frame");
+  for (const auto& v : vehicles)
+    for (const auto& r : rsus_)
+      if (r.node == v.node) throw std::invalid_argument("sweep: node " + std::to_string(v.node) + " is an RSU");
+
+  const bool block_start = frame_index % options_.block_frames == 0;
+  if (block_start) {
+    placed_.clear();
+    cache_.clear();
+  }
+
+  // Update rule: which meshes move; spheres of everything that moved.
+  std::vector<Sphere> moved;
+  std::vector<std::uint32_t> updated;  // sorted node ids
+  bool scene_changed = false, departed = false;
+  {
+    std::map<std::uint32_t, Placed> next;
+    for (const auto& v : vehicles) {
+      auto it = placed_.find(v.node);
+      bool update = it == placed_.end();
+      if (!update) {
+        const double threshold = std::max(options_.d0_m, norm(v.velocity) * options_.coherence_time_s);
+        if (threshold == 0)
+          update = !same_pose(v, it->second.v);
+        else
+          update = norm(v.position - it->second.v.position) > threshold || v.model != it->second.v.model;
+        if (!update && !same_pose(v, it->second.v)) ++stats_.updates_deferred;
+      }
+      if (update) {
+        if (it != placed_.end()) moved.push_back(bounding_sphere(it->second.v));
+        moved.push_back(bounding_sphere(v));
+        updated.push_back(v.node);
+        next[v.node] = Placed{v};
+        ++stats_.vehicle_updates;
+        scene_changed = true;
+      } else {
+        next[v.node] = it->second;
+      }
+    }
+    for (const auto& [node, p] : placed_)
+      if (!next.count(node)) {
+        moved.push_back(bounding_sphere(p.v));
+        scene_changed = departed = true;
+      }
+    placed_ = std::move(next);
+  }
+
+  // Antennas in node order, so local pair (i < j) is node pair (i < j).
+  if (scene_changed || block_start) {
+    std::vector<tracer::VehiclePose> poses;
+    for (const auto& [node, p] : placed_) {
+      const double yaw = yaw_of(p.v.heading_deg);
+      poses.push_back(tracer::VehiclePose{std::to_string(node), p.v.model, p.v.position, yaw, p.v.velocity});
+    }
+    scene_.set_vehicles(poses);
+  }
+  std::vector<tracer::Node> nodes;
+  std::vector<std::uint32_t> node_of;  // local index -> dataset node
+  std::vector<std::uint32_t> slot_node(placed_.size());
+  {
+    std::size_t r = 0, slot = 0;
+    auto it = placed_.begin();
+    while (r < rsus_.size() || it != placed_.end()) {
+      if (it == placed_.end() || (r < rsus_.size() && rsus_[r].node < it->first)) {
+        nodes.push_back(tracer::Node{std::to_string(rsus_[r].node), rsus_[r].position, {0, 0, 0}, {1, 0, 0}, -1});
+        node_of.push_back(rsus_[r].node);
+        ++r;
+      } else {
+        nodes.push_back(tracer::Node{std::to_string(it->first), scene_.vehicle_antenna(slot), it->second.v.velocity,
+                                     scene_.vehicle_forward(slot), static_cast<int>(slot)});
+        node_of.push_back(it->first);
+        slot_node[slot] = it->first;
+        ++slot;
+        ++it;
+      }
+    }
+  }
+
+  // Which pairs to trace.
+  const auto n = static_cast<std::uint32_t>(nodes.size());
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> all, todo;
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (std::uint32_t j = i + 1; j < n; ++j) all.emplace_back(i, j);
+  for (const auto& [i, j] : all) {
+    auto it = cache_.find(pair_key(node_of[i], node_of[j]));
+    bool trace = it == cache_.end() || options_.cache == CacheMode::none;
+    if (!trace && options_.cache == CacheMode::global) trace = !moved.empty();
+    if (!trace && options_.cache == CacheMode::per_pair) {
+      trace = std::binary_search(updated.begin(), updated.end(), node_of[i]) ||
+              std::binary_search(updated.begin(), updated.end(), node_of[j]);
+      const auto& c = it->second;
+      for (std::size_t s = 0; !trace && s < moved.size(); ++s) {
+        const Sphere& m = moved[s];
+        const double r = m.r + options_.cache_margin_m;
+        // A path near the vehicle may be blocked, moved or gone; a vehicle
+        // inside the strong ellipsoid may add a path as strong as the best.
+        if (norm(m.c - c.a) + norm(m.c - c.b) - 2 * m.r <= c.reach) {
+          trace = true;
+          break;
+        }
+        bool outside = false;
+        for (int k = 0; k < 3; ++k) outside |= m.c[k] < c.lo[k] - r || m.c[k] > c.hi[k] + r;
+        if (outside) continue;
+        std::size_t q = 0;
+        for (const auto n : c.path_points) {
+          for (std::size_t e = q; !trace && e + 1 < q + n; ++e)
+            trace = segment_distance(m.c, c.points[e], c.points[e + 1]) <= r;
+          q += n;
+        }
+      }
+    }
+    if (trace) todo.emplace_back(i, j);
+  }
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const tracer::Snapshot snap = tracer::trace_pairs(scene_, nodes, todo, tracer_, radio_);
+  stats_.trace_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stats_.rays += snap.stats.rays;
+
+  const std::uint32_t statics = scene_.static_object_count();
+  const double c0 = tracer::kSpeedOfLight;
+  for (std::size_t p = 0; p < todo.size(); ++p) {
+    const auto& res = snap.pairs[p];
+    const auto [i, j] = todo[p];
+    CachedLink c;
+    c.a = nodes[i].position;
+    c.b = nodes[j].position;
+    // The direct segment is a "path" for invalidation: a vehicle crossing it
+    // changes the LoS class.
+    double strongest_len = norm(c.a - c.b), strongest = -1;
+    c.points = {c.a, c.b};
+    c.path_points = {2};
+    auto& L = c.link;
+    L.tx = node_of[i];
+    L.rx = node_of[j];
+    L.los_class = static_cast<std::uint8_t>(res.los_class);
+    L.blocker_count = static_cast<std::uint16_t>(std::min<std::size_t>(res.blockers.size(), 65535));
+    L.gain_coherent_db = static_cast<float>(tracer::to_db(res.stats.gain_coherent));
+    L.gain_incoherent_db = static_cast<float>(tracer::to_db(res.stats.gain_incoherent));
+    L.first_delay_s = res.stats.first_delay_s;
+    L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
+    L.path_count = static_cast<std::uint32_t>(res.paths.size());
+    for (const auto& path : res.paths) {
+      if (std::norm(path.a) > strongest) {
+        strongest = std::norm(path.a);
+        strongest_len = path.tau_s * c0;
+      }
+      c.points.push_back(c.a);
+      for (const auto& in : path.interactions) c.points.push_back(in.point);
+      c.points.push_back(c.b);
+      c.path_points.push_back(static_cast<std::uint32_t>(path.interactions.size() + 2));
+      PathRecord pr;
+      pr.a = std::complex<float>(static_cast<float>(path.a.real()), static_cast<float>(path.a.imag()));
+      pr.tau_s = path.tau_s;
+      pr.theta_t = static_cast<float>(path.theta_t);
+      pr.phi_t = static_cast<float>(path.phi_t);
+      pr.theta_r = static_cast<float>(path.theta_r);
+      pr.phi_r = static_cast<float>(path.phi_r);
+      pr.doppler_hz = static_cast<float>(path.doppler_hz);
+      pr.interaction_count = static_cast<std::uint8_t>(path.interactions.size());
+      c.paths.push_back(pr);
+      for (const auto& in : path.interactions) {
+        InteractionRecord ir;
+        ir.type = static_cast<std::uint8_t>(in.type);
+        ir.object = in.object < statics ? in.object : statics + slot_node.at(in.object - statics);
+        ir.x = static_cast<float>(in.point[0]);
+        ir.y = static_cast<float>(in.point[1]);
+        ir.z = static_cast<float>(in.point[2]);
+        c.interactions.push_back(ir);
+      }
+    }
+    c.reach = std::max(strongest_len, norm(c.a - c.b)) + options_.cache_margin_m;
+    c.lo = c.hi = c.a;
+    for (const auto& p : c.points)
+      for (int k = 0; k < 3; ++k) {
+        c.lo[k] = std::min(c.lo[k], p[k]);
+        c.hi[k] = std::max(c.hi[k], p[k]);
+      }
+    if (options_.cfr)
+      for (const auto& h : tracer::frequency_response(res.paths, *options_.cfr))
+        c.cfr.emplace_back(static_cast<float>(h.real()), static_cast<float>(h.imag()));
+    cache_[pair_key(L.tx, L.rx)] = std::move(c);
+  }
+
+  FrameRecord frame;
+  frame.time_s = time_s;
+  {
+    std::size_t r = 0;
+    auto v = vehicles.begin();
+    while (r < rsus_.size() || v != vehicles.end()) {
+      NodeState s;
+      if (v == vehicles.end() || (r < rsus_.size() && rsus_[r].node < v->node)) {
+        s.node = rsus_[r].node;
+        s.x = rsus_[r].position[0];
+        s.y = rsus_[r].position[1];
+        s.z = rsus_[r].position[2];
+        ++r;
+      } else {
+        s.node = v->node;
+        s.x = v->position[0];
+        s.y = v->position[1];
+        s.z = v->position[2];
+        s.vx = static_cast<float>(v->velocity[0]);
+        s.vy = static_cast<float>(v->velocity[1]);
+        s.vz = static_cast<float>(v->velocity[2]);
+        s.heading_deg = static_cast<float>(v->heading_deg);
+        ++v;
+      }
+      frame.nodes.push_back(s);
+    }
+  }
+  std::size_t next_traced = 0;
+  for (const auto& [i, j] : all) {
+    const bool traced = next_traced < todo.size() && todo[next_traced] == std::make_pair(i, j);
+    if (traced) ++next_traced;
+    const auto& c = cache_.at(pair_key(node_of[i], node_of[j]));
+    LinkRecord link = c.link;
+    if (!traced) link.flags |= kLinkCached;
+    frame.links.push_back(link);
+    frame.paths.insert(frame.paths.end(), c.paths.begin(), c.paths.end());
+    frame.interactions.insert(frame.interactions.end(), c.interactions.begin(), c.interactions.end());
+    frame.cfr.insert(frame.cfr.end(), c.cfr.begin(), c.cfr.end());
+    stats_.paths += c.paths.size();
+  }
+  // Pairs whose nodes left are of no further use.
+  if (departed) {
+    for (auto it = cache_.begin(); it != cache_.end();) {
+      const auto a = static_cast<std::uint32_t>(it->first >> 32), b = static_cast<std::uint32_t>(it->first);
+      auto present = [&](std::uint32_t x) {
+        return placed_.count(x) ||
+               std::any_of(rsus_.begin(), rsus_.end(), [x](const SweepRsu& r) { return r.node == x; });
+      };
+      it = present(a) && present(b) ? std::next(it) : cache_.erase(it);
+    }
+  }
+  ++stats_.frames;
+  stats_.links += all.size();
+  stats_.traced_links += todo.size();
+  return frame;
+}
+
+}  // namespace raysweep::generators

@@ -1,0 +1,122 @@
+// The traffic sweep: frame after frame, move the vehicle instances, decide
+// which pairs must be traced again, trace them and turn the results into
+// dataset records (dataset.hpp).
+//
+// Two ways to avoid work, both optional and both measured (see README):
+// - The update rule of the VaN3Twin paper: a vehicle's mesh is moved only
+//   when it has moved more than max(d0, v * Tc) since its last update; until
+//   then it is traced where it was last placed. d0 = Tc = 0 moves every
+//   vehicle that changed at all (exact tracing).
+// - The path cache. `global` (the paper): any update clears every pair.
+//   `per_pair`: an update invalidates the pairs the vehicle belongs to, the
+//   pairs with a stored path segment or the direct segment within the
+//   margin of the vehicle's old or new bounding sphere, and the pairs whose
+//   "strong" ellipsoid (foci at the two antennas, sum of distances up to the
+//   strongest stored path's length plus the margin) meets either sphere. A
+//   pair kept from the cache therefore still has exactly its stored paths
+//   and LoS class; what it can miss is a new path via a vehicle that moved
+//   outside the strong ellipsoid, which is longer, hence weaker in spreading
+//   loss, than the strongest path it has (measured by `raysweep` benchmarks).
+//
+// The cache and the update rule restart at every block of `block_frames`
+// frames (every vehicle placed afresh, every pair traced), so each block
+// depends only on its own frames: a resumed run commits the same blocks as
+// an uninterrupted one.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "generators/dataset.hpp"
+#include "tracer/channel.hpp"
+#include "tracer/solver.hpp"
+
+namespace raysweep::generators {
+
+enum class CacheMode { none, per_pair, global };
+const char* cache_mode_name(CacheMode m);
+CacheMode parse_cache_mode(const std::string& s);  // "none" | "per_pair" | "global"; std::invalid_argument otherwise
+
+struct SweepOptions {
+  double d0_m = 0;
+  double coherence_time_s = 0;
+  CacheMode cache = CacheMode::per_pair;
+  double cache_margin_m = 0.5;
+  std::uint32_t block_frames = 50;
+  std::optional<tracer::OfdmGrid> cfr;  // store each link's frequency response
+};
+
+// A vehicle in the current frame.
+struct SweepVehicle {
+  std::uint32_t node = 0;   // dataset node index (stable over the sweep)
+  std::uint32_t model = 0;  // TraceScene model index
+  tracer::Vec3 position{0, 0, 0};  // front-bumper centre on the road (SUMO)
+  double heading_deg = 0;          // clockwise from north (SUMO)
+  tracer::Vec3 velocity{0, 0, 0};
+  double length_m = 5, width_m = 2, height_m = 1.5;  // for the bounding sphere
+};
+
+// A static antenna (road-side unit).
+struct SweepRsu {
+  std::uint32_t node = 0;
+  tracer::Vec3 position{0, 0, 0};  // antenna
+};
+
+struct SweepStats {
+  std::uint64_t frames = 0;
+  std::uint64_t links = 0;           // pair-frames written
+  std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
+  std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
+  std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
+  std::uint64_t paths = 0;
+  std::uint64_t rays = 0;
+  double trace_seconds = 0;
+  double hit_ratio() const { return links ? 1.0 - static_cast<double>(traced_links) / links : 0.0; }
+};
+
+class Sweep {
+ public:
+  // `rsus` are present in every frame. The scene's vehicle models must be
+  // registered before step() names them.
+  Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, const tracer::RadioConfig& radio,
+        const SweepOptions& options, std::vector<SweepRsu> rsus);
+
+  // One frame. `frame_index` counts frames from the start of the sweep (it
+  // places the block boundaries); vehicles in any order, node ids unique.
+  FrameRecord step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles);
+
+  const SweepStats& stats() const { return stats_; }
+  // Object table of the dataset: the static objects, then one per node
+  // (`node_ids` in node order).
+  std::vector<std::string> object_names(const std::vector<std::string>& node_ids) const;
+
+ private:
+  struct Placed {
+    SweepVehicle v;  // pose it was last placed at
+  };
+  struct CachedLink {
+    LinkRecord link;
+    std::vector<PathRecord> paths;
+    std::vector<InteractionRecord> interactions;
+    std::vector<std::complex<float>> cfr;
+    tracer::Vec3 a, b;  // antenna positions it was traced with
+    double reach = 0;   // strongest stored path's length (or the direct distance) + margin
+    std::vector<tracer::Vec3> points;         // each path's polyline a, interactions..., b
+    std::vector<std::uint32_t> path_points;   // polyline sizes
+    tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point
+  };
+
+  tracer::TraceScene& scene_;
+  tracer::TracerConfig tracer_;
+  tracer::RadioConfig radio_;
+  SweepOptions options_;
+  std::vector<SweepRsu> rsus_;
+  std::map<std::uint32_t, Placed> placed_;
+  std::map<std::uint64_t, CachedLink> cache_;
+  SweepStats stats_;
+};
+
+}  // namespace raysweep::generators
