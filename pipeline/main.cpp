@@ -7,10 +7,17 @@
 #include <map>
 #include <sstream>
 
+#include <tbb/global_control.h>
+
+#include "generators/dataset_schema.hpp"
+#include "generators/dataset_writer.hpp"
 #include "meshkit/errors.hpp"
+#include "pipeline/city_run.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/staged_output.hpp"
+#include "pipeline/sweep_stage.hpp"
+#include "pipeline/traffic_stage.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
@@ -40,6 +47,9 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   bool quiet = false;
   app.add_flag("-q,--quiet", quiet, "only warnings and errors");
+  int threads = 0;
+  app.add_option("-j,--threads", threads, "worker threads (default: all cores; results do not depend on it)")
+      ->check(CLI::NonNegativeNumber);
 
   raysweep::pipeline::SceneArgs scene;
   std::string offset;
@@ -91,8 +101,53 @@ int main(int argc, char** argv) {
   pc->add_option("--min-gap", poses_gap, "spacing that sets the footprint margin (m)");
   pc->add_option("--out", poses_out, "output CSV")->required();
 
+  raysweep::pipeline::TrafficArgs traffic;
+  std::string traffic_classes;
+  auto* tf = app.add_subcommand("traffic", "run SUMO (real traffic) into an FCD trace: from a .sumocfg or random trips");
+  tf->add_option("--net", traffic.net, "SUMO network (.net.xml[.gz])")->required();
+  auto* tf_cfg = tf->add_option("--sumocfg", traffic.sumocfg, "SUMO config with the demand (routes)");
+  auto* tf_seed = tf->add_option("--trips-seed", traffic.seed, "generate random trips (randomTrips.py) with this seed");
+  tf_cfg->excludes(tf_seed);
+  tf->add_option("--seed", traffic.seed, "SUMO seed (with --sumocfg)");
+  tf->add_option("--begin", traffic.begin_s, "simulation begin (s)");
+  tf->add_option("--end", traffic.end_s, "simulation end (s)");
+  tf->add_option("--step-length", traffic.step_length_s, "simulation step = FCD sampling (s)");
+  tf->add_option("--period", traffic.period_s, "random trips: one trip every PERIOD seconds");
+  tf->add_option("--fringe-factor", traffic.fringe_factor, "random trips: weight of trips starting at the fringe");
+  tf->add_option("--classes", traffic_classes, "random trips: class mix, e.g. passenger:8,truck:1,bus:1");
+  tf->add_option("--out", traffic.out, "output folder")->required();
+
+  raysweep::pipeline::SweepArgs sweep;
+  auto* sw = app.add_subcommand("sweep", "trace an FCD trace frame by frame into an HDF5 channel dataset");
+  sw->add_option("--scene", sweep.scene, "scene folder (from `raysweep scene`)")->required();
+  sw->add_option("--vehicles", sweep.vehicles, "vehicle library folder (default: built-in parametric models)");
+  sw->add_option("--fcd", sweep.fcd, "SUMO FCD trace (.xml or .xml.gz)")->required();
+  sw->add_option("--vtypes", sweep.vtypes, ".sumocfg or route/additional files defining the FCD's vehicle types");
+  sw->add_option("--rsus", sweep.rsus, "road-side units CSV: id,x,y,z (antenna position)");
+  sw->add_option("--out", sweep.out, "output .h5")->required();
+  sw->add_option("--config", sweep.config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
+  sw->add_flag("--resume", sweep.resume, "continue an interrupted run (keeps its committed blocks)");
+
+  raysweep::pipeline::CityRunArgs city;
+  auto* rc = app.add_subcommand("run", "one city: scene -> vehicles -> traffic -> sweep (skips up-to-date stages)");
+  rc->add_option("city", city.city, "city config (e.g. datasets/demo/city.toml)")->required();
+  rc->add_option("--out", city.out, "output folder (default: [city] out or out/<name>)");
+  rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
+  rc->add_flag("--force", city.force, "run every stage even when up to date");
+
+  std::string check_file;
+  auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
+  vd->add_option("file", check_file, "dataset .h5")->required();
+  std::string info_file;
+  bool info_json = false;
+  auto* inf = app.add_subcommand("info", "summarise an HDF5 dataset");
+  inf->add_option("file", info_file, "dataset .h5")->required();
+  inf->add_flag("--json", info_json, "print the summary as JSON");
+
   CLI11_PARSE(app, argc, argv);
   if (quiet) spdlog::set_level(spdlog::level::warn);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
 
   try {
     if (sc->parsed()) {
@@ -117,6 +172,44 @@ int main(int argc, char** argv) {
       std::cout << trace.out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
                 << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
                 << " paths\n";
+    }
+    if (tf->parsed()) {
+      if (!traffic_classes.empty()) {
+        traffic.classes.clear();
+        std::istringstream in(traffic_classes);
+        std::string item;
+        while (std::getline(in, item, ',')) {
+          const auto colon = item.find(':');
+          traffic.classes[item.substr(0, colon)] = colon == std::string::npos ? 1.0 : std::stod(item.substr(colon + 1));
+        }
+      }
+      const auto rec = raysweep::pipeline::run_traffic_stage(traffic, args);
+      std::cout << traffic.out << ": " << rec["fcd"].get<std::string>() << " (" << rec["fcd_bytes"] << " bytes)\n";
+    }
+    if (sw->parsed()) {
+      const auto summary = raysweep::pipeline::run_sweep_stage(sweep, args);
+      std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"] << " pair-channels ("
+                << summary["traced_links"] << " traced), " << summary["bytes"] << " bytes\n";
+    }
+    if (rc->parsed()) {
+      const auto summary = raysweep::pipeline::run_city(city, args);
+      std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n"
+                << raysweep::generators::format_dataset_info(summary["info"]);
+      if (!summary["valid"].get<bool>()) return 1;
+    }
+    if (vd->parsed()) {
+      const auto problems = raysweep::generators::validate_dataset(check_file);
+      for (const auto& p : problems) std::cout << check_file << ": " << p << "\n";
+      if (!problems.empty()) {
+        std::cout << check_file << ": INVALID (" << problems.size() << " problems)\n";
+        return 1;
+      }
+      std::cout << check_file << ": valid (schema " << raysweep::generators::kDatasetSchemaVersion << ")\n";
+    }
+    if (inf->parsed()) {
+      const auto info = raysweep::generators::dataset_info(info_file);
+      if (info_json) std::cout << info.dump(1) << "\n";
+      else std::cout << raysweep::generators::format_dataset_info(info);
     }
     if (pc->parsed()) {
       std::map<std::string, double> mix;

@@ -1,0 +1,265 @@
+#include "pipeline/city_run.hpp"
+
+#include <openssl/evp.h>
+#include <spdlog/spdlog.h>
+#include <toml++/toml.h>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "generators/dataset_schema.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/provenance.hpp"
+#include "pipeline/scene_stage.hpp"
+#include "pipeline/staged_output.hpp"
+#include "pipeline/sweep_stage.hpp"
+#include "pipeline/toml_fields.hpp"
+#include "pipeline/traffic_stage.hpp"
+#include "pipeline/vehicles_stage.hpp"
+#include "pipeline/version.hpp"
+
+namespace raysweep::pipeline {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using namespace toml_fields;
+
+namespace {
+
+std::string sha256_text(const std::string& s) {
+  unsigned char md[EVP_MAX_MD_SIZE];
+  unsigned int len = 0;
+  EVP_Digest(s.data(), s.size(), md, &len, EVP_sha256(), nullptr);
+  static const char* hex = "0123456789abcdef";
+  std::string out;
+  for (unsigned int i = 0; i < len; ++i) {
+    out += hex[md[i] >> 4];
+    out += hex[md[i] & 15];
+  }
+  return out;
+}
+
+// The tables of the city file that configure a stage, as canonical text.
+std::string tables_text(const toml::table& root, const std::vector<std::string>& names) {
+  std::ostringstream s;
+  for (const auto& n : names) {
+    s << "[" << n << "]\n";
+    if (const toml::node* t = root.get(n)) s << toml::json_formatter{*t} << "\n";
+  }
+  return s.str();
+}
+
+fs::path relative_to(const fs::path& file, const std::string& p) {
+  if (p.empty()) return {};
+  const fs::path q(p);
+  return q.is_absolute() ? q : (file.parent_path() / q).lexically_normal();
+}
+
+class Stamps {
+ public:
+  explicit Stamps(fs::path dir) : dir_(std::move(dir)) {}
+  bool up_to_date(const std::string& stage, const std::string& key, const fs::path& output) const {
+    std::ifstream in(dir_ / (stage + ".json"));
+    if (!in || !fs::exists(output)) return false;
+    try {
+      return json::parse(in).value("key", "") == key;
+    } catch (...) {
+      return false;
+    }
+  }
+  void mark(const std::string& stage, const std::string& key) const {
+    fs::create_directories(dir_);
+    write_file_atomic(dir_ / (stage + ".json"), json{{"key", key}}.dump() + "\n");
+  }
+
+ private:
+  fs::path dir_;
+};
+
+}  // namespace
+
+CityConfig load_city_config(const std::string& path) {
+  load_scene_config(path);  // parses, checks the sections
+  const toml::table root = toml::parse_file(path);
+  CityConfig c;
+  const fs::path file = fs::absolute(path);
+  const toml::table* city = root["city"].as_table();
+  if (!city) throw ConfigError(path + ": no [city] table (name, osm, net)");
+  for (auto&& [k, node] : *city) {
+    const std::string key(k.str()), full = "city." + key;
+    if (key == "name") c.name = text(path, full, node);
+    else if (key == "osm") c.osm = relative_to(file, text(path, full, node)).string();
+    else if (key == "net") c.net = relative_to(file, text(path, full, node)).string();
+    else if (key == "mitsuba") c.mitsuba = relative_to(file, text(path, full, node)).string();
+    else if (key == "rsus") c.rsus = relative_to(file, text(path, full, node)).string();
+    else if (key == "out") c.out = text(path, full, node);
+    else throw ConfigError(where(path, full, node) + ": unknown key (name, osm, net, mitsuba, rsus, out)");
+  }
+  if (c.name.empty()) throw ConfigError(path + ": key 'city.name' is required");
+  if (c.net.empty()) throw ConfigError(path + ": key 'city.net' is required (the SUMO network)");
+  if (c.osm.empty() == c.mitsuba.empty()) throw ConfigError(path + ": give exactly one of city.osm and city.mitsuba");
+  for (const auto* p : {&c.osm, &c.net, &c.mitsuba, &c.rsus})
+    if (!p->empty() && !fs::exists(*p))
+      throw ConfigError(path + ": input " + *p + " not found" +
+                        (p->find("shared/data") != std::string::npos
+                             ? " (this recipe reads the third-party data in ../shared/data next to the checkout)"
+                             : ""));
+  if (const toml::table* t = root["traffic"].as_table()) {
+    if (const auto* n = t->get("sumocfg")) c.sumocfg = relative_to(file, text(path, "traffic.sumocfg", *n)).string();
+    if (const auto* n = t->get("fcd")) c.fcd = relative_to(file, text(path, "traffic.fcd", *n)).string();
+    if (!c.sumocfg.empty() && !c.fcd.empty())
+      throw ConfigError(path + ": give at most one of traffic.sumocfg and traffic.fcd");
+    for (const auto* p : {&c.sumocfg, &c.fcd})
+      if (!p->empty() && !fs::exists(*p)) throw ConfigError(path + ": input " + *p + " not found");
+  }
+  c.out = c.out.empty() ? ("out/" + c.name) : relative_to(fs::current_path() / "x", c.out).string();
+  return c;
+}
+
+namespace {
+
+TrafficArgs load_traffic_args(const std::string& path, const CityConfig& city, const std::string& out) {
+  TrafficArgs a;
+  a.net = city.net;
+  a.sumocfg = city.sumocfg;
+  a.out = out;
+  const toml::table root = toml::parse_file(path);
+  const toml::table* t = root["traffic"].as_table();
+  if (!t) return a;
+  for (auto&& [k, node] : *t) {
+    const std::string key(k.str()), full = "traffic." + key;
+    if (key == "sumocfg" || key == "fcd") continue;
+    if (key == "seed") {
+      const int v = integer(path, full, node);
+      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
+      a.seed = static_cast<std::uint64_t>(v);
+    } else if (key == "begin_s") a.begin_s = number(path, full, node);
+    else if (key == "end_s") a.end_s = number(path, full, node);
+    else if (key == "step_length_s") a.step_length_s = number(path, full, node);
+    else if (key == "period_s") a.period_s = number(path, full, node);
+    else if (key == "fringe_factor") a.fringe_factor = number(path, full, node);
+    else if (key == "classes") {
+      const toml::table* ct = node.as_table();
+      if (!ct) throw ConfigError(where(path, full, node) + ": expected a table of class = weight");
+      a.classes.clear();
+      for (auto&& [ck, cv] : *ct) a.classes[std::string(ck.str())] = number(path, full + "." + std::string(ck.str()), cv);
+    } else {
+      throw ConfigError(where(path, full, node) +
+                        ": unknown key (sumocfg, fcd, seed, begin_s, end_s, step_length_s, period_s, fringe_factor, "
+                        "classes)");
+    }
+  }
+  if (!(a.end_s > a.begin_s)) throw ConfigError(path + ": key 'traffic.end_s' must be after traffic.begin_s");
+  if (!(a.step_length_s > 0)) throw ConfigError(path + ": key 'traffic.step_length_s' must be > 0");
+  return a;
+}
+
+}  // namespace
+
+json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
+  const CityConfig city = load_city_config(args.city);
+  const fs::path out = args.out.empty() ? fs::path(city.out) : fs::path(args.out);
+  const toml::table root = toml::parse_file(args.city);
+  const Stamps stamps(out / ".stamps");
+  const std::string version = std::string(kVersion) + "+" + kGitHash;
+  json summary = {{"city", city.name}, {"out", out.string()}};
+  auto file_hash = [](const std::string& p) { return p.empty() ? std::string() : sha256_file(p); };
+
+  // Scene.
+  const fs::path scene_dir = out / "scene";
+  const std::string scene_key = sha256_text(version + tables_text(root, {"scene"}) + file_hash(city.osm) +
+                                            file_hash(city.net) + file_hash(city.mitsuba));
+  if (!args.force && stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
+    spdlog::info("[1/4] scene: up to date ({})", scene_dir.string());
+  } else {
+    spdlog::info("[1/4] scene: building {}", scene_dir.string());
+    SceneArgs s;
+    if (city.mitsuba.empty()) {
+      s.osm = city.osm;
+      s.net = city.net;
+    } else {
+      s.from_mitsuba = city.mitsuba;
+    }
+    s.out = scene_dir.string();
+    s.config = args.city;
+    run_scene_stage(s, argv);
+    stamps.mark("scene", scene_key);
+  }
+
+  // Vehicle library.
+  const fs::path vehicles_dir = out / "vehicles";
+  const std::string vehicles_key = sha256_text(version + tables_text(root, {"vehicles"}));
+  if (!args.force && stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
+    spdlog::info("[2/4] vehicles: up to date ({})", vehicles_dir.string());
+  } else {
+    spdlog::info("[2/4] vehicles: building {}", vehicles_dir.string());
+    VehiclesArgs v;
+    v.out = vehicles_dir.string();
+    v.config = args.city;
+    run_vehicles_stage(v, argv);
+    stamps.mark("vehicles", vehicles_key);
+  }
+
+  // Traffic.
+  const fs::path traffic_dir = out / "traffic";
+  std::string fcd = city.fcd;
+  std::vector<std::string> vtype_files;
+  double eta_end = -1;
+  if (!fcd.empty()) {
+    spdlog::info("[3/4] traffic: using the FCD trace {}", fcd);
+  } else {
+    const TrafficArgs t = load_traffic_args(args.city, city, traffic_dir.string());
+    const std::string traffic_key =
+        sha256_text(version + tables_text(root, {"traffic"}) + file_hash(city.net) + file_hash(city.sumocfg));
+    if (!args.force && stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
+      spdlog::info("[3/4] traffic: up to date ({})", traffic_dir.string());
+    } else {
+      spdlog::info("[3/4] traffic: running SUMO into {}", traffic_dir.string());
+      run_traffic_stage(t, argv);
+      stamps.mark("traffic", traffic_key);
+    }
+    std::ifstream in(traffic_dir / "traffic.json");
+    const json rec = json::parse(in);
+    fcd = (traffic_dir / rec.at("fcd").get<std::string>()).string();
+    for (const auto& f : rec.at("vtype_files")) {
+      const fs::path p(f.get<std::string>());
+      vtype_files.push_back(p.is_absolute() ? p.string() : (traffic_dir / p).string());
+    }
+    eta_end = rec.value("end_s", -1.0);
+  }
+  if (!city.sumocfg.empty() && vtype_files.empty()) vtype_files.push_back(city.sumocfg);
+
+  // Sweep.
+  const fs::path dataset = out / "dataset.h5";
+  std::string sweep_key = version + tables_text(root, {"sweep", "radio", "tracer", "materials"}) + file_hash(fcd) +
+                          file_hash(city.rsus) + file_hash((scene_dir / "scene.glb").string()) +
+                          file_hash((vehicles_dir / "manifest.json").string());
+  for (const auto& f : vtype_files) sweep_key += file_hash(f);
+  sweep_key = sha256_text(sweep_key);
+  if (!args.force && stamps.up_to_date("sweep", sweep_key, dataset)) {
+    spdlog::info("[4/4] sweep: up to date ({})", dataset.string());
+  } else {
+    spdlog::info("[4/4] sweep: tracing {} into {}", fcd, dataset.string());
+    SweepArgs s;
+    s.scene = scene_dir.string();
+    s.vehicles = vehicles_dir.string();
+    s.fcd = fcd;
+    s.vtypes = vtype_files;
+    s.rsus = city.rsus;
+    s.out = dataset.string();
+    s.config = args.city;
+    s.resume = args.resume;
+    s.eta_end_s = eta_end;
+    summary["sweep"] = run_sweep_stage(s, argv);
+    stamps.mark("sweep", sweep_key);
+  }
+  summary["dataset"] = dataset.string();
+  summary["info"] = generators::dataset_info(dataset.string());
+  const auto problems = generators::validate_dataset(dataset.string());
+  summary["valid"] = problems.empty();
+  for (const auto& p : problems) spdlog::error("{}: {}", dataset.string(), p);
+  return summary;
+}
+
+}  // namespace raysweep::pipeline

@@ -1,0 +1,448 @@
+#include "pipeline/sweep_stage.hpp"
+
+#include <spdlog/spdlog.h>
+#include <toml++/toml.h>
+
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+
+#include "generators/dataset_writer.hpp"
+#include "generators/frame_block.hpp"
+#include "meshkit/errors.hpp"
+#include "meshkit/gltf_io.hpp"
+#include "meshkit/vehicle_classes.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/fcd.hpp"
+#include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
+#include "pipeline/toml_fields.hpp"
+#include "pipeline/trace_config.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "pipeline/trace_stage.hpp"
+#include "pipeline/version.hpp"
+#include "pipeline/vtypes.hpp"
+#include "tracer/tracer.hpp"
+
+namespace raysweep::pipeline {
+
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+using namespace toml_fields;
+
+namespace {
+
+std::vector<std::string> strings(const std::string& path, const std::string& key, const toml::node& n) {
+  const toml::array* a = n.as_array();
+  if (!a) throw ConfigError(where(path, key, n) + ": expected an array of strings");
+  std::vector<std::string> out;
+  for (const auto& e : *a) out.push_back(text(path, key, e));
+  return out;
+}
+
+std::string block_name(std::uint64_t b) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "block_%06llu", static_cast<unsigned long long>(b));
+  return buf;
+}
+
+double finite_or_throw(double v, const std::string& what) {
+  if (!std::isfinite(v)) throw std::invalid_argument(what + " is not finite");
+  return v;
+}
+
+}  // namespace
+
+json SweepConfig::to_json() const {
+  json j;
+  j["begin_s"] = begin_s;
+  j["end_s"] = end_s;
+  j["step_s"] = step_s;
+  j["ids"] = ids;
+  j["types"] = types;
+  j["area"] = area;
+  j["max_vehicles"] = max_vehicles;
+  j["outside"] = outside;
+  j["cfr"] = cfr;
+  j["lod"] = lod;
+  j["exclude_objects"] = exclude_objects;
+  j["d0_m"] = options.d0_m;
+  j["coherence_time_s"] = options.coherence_time_s;
+  j["cache"] = generators::cache_mode_name(options.cache);
+  j["cache_margin_m"] = options.cache_margin_m;
+  j["block_frames"] = options.block_frames;
+  return j;
+}
+
+SweepConfig load_sweep_config(const std::string& path) {
+  SweepConfig c;
+  if (path.empty()) return c;
+  load_scene_config(path);  // validates the file and its top-level sections
+  const toml::table root = toml::parse_file(path);
+  const toml::table* t = root["sweep"].as_table();
+  if (!t) return c;
+  for (auto&& [k, node] : *t) {
+    const std::string key(k.str()), full = "sweep." + key;
+    auto non_negative = [&](double v) {
+      if (!(v >= 0)) throw ConfigError(where(path, full, node) + ": must be >= 0");
+      return v;
+    };
+    if (key == "begin_s") c.begin_s = number(path, full, node);
+    else if (key == "end_s") c.end_s = number(path, full, node);
+    else if (key == "step_s") c.step_s = non_negative(number(path, full, node));
+    else if (key == "ids") c.ids = strings(path, full, node);
+    else if (key == "types") c.types = strings(path, full, node);
+    else if (key == "area") {
+      const toml::array* a = node.as_array();
+      if (!a || a->size() != 4) throw ConfigError(where(path, full, node) + ": expected [xmin, ymin, xmax, ymax]");
+      for (const auto& e : *a) c.area.push_back(number(path, full, e));
+      if (!(c.area[0] < c.area[2] && c.area[1] < c.area[3]))
+        throw ConfigError(where(path, full, node) + ": expected xmin < xmax and ymin < ymax");
+    } else if (key == "max_vehicles") {
+      const int v = integer(path, full, node);
+      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
+      c.max_vehicles = static_cast<std::size_t>(v);
+    } else if (key == "outside") {
+      c.outside = text(path, full, node);
+      if (c.outside != "error" && c.outside != "drop")
+        throw ConfigError(where(path, full, node) + ": expected \"error\" or \"drop\"");
+    } else if (key == "cfr") {
+      c.cfr = text(path, full, node);
+      if (!c.cfr.empty()) {
+        try {
+          parse_ofdm_grid(c.cfr, 5.9e9);
+        } catch (const std::invalid_argument& e) {
+          throw ConfigError(where(path, full, node) + ": " + e.what());
+        }
+      }
+    } else if (key == "lod") c.lod = integer(path, full, node);
+    else if (key == "exclude_objects") c.exclude_objects = text(path, full, node);
+    else if (key == "d0_m") c.options.d0_m = non_negative(number(path, full, node));
+    else if (key == "coherence_time_s") c.options.coherence_time_s = non_negative(number(path, full, node));
+    else if (key == "cache_margin_m") c.options.cache_margin_m = non_negative(number(path, full, node));
+    else if (key == "cache") {
+      try {
+        c.options.cache = generators::parse_cache_mode(text(path, full, node));
+      } catch (const std::invalid_argument& e) {
+        throw ConfigError(where(path, full, node) + ": " + e.what());
+      }
+    } else if (key == "block_frames") {
+      const int v = integer(path, full, node);
+      if (v < 1) throw ConfigError(where(path, full, node) + ": must be >= 1");
+      c.options.block_frames = static_cast<std::uint32_t>(v);
+    } else {
+      throw ConfigError(where(path, full, node) + ": unknown key");
+    }
+  }
+  if (!(c.begin_s <= c.end_s)) throw ConfigError(path + ": key 'sweep.end_s': must not be before sweep.begin_s");
+  return c;
+}
+
+json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
+  const TraceSettings settings = load_trace_config(args.config);
+  const SweepConfig cfg = load_sweep_config(args.config);
+  generators::SweepOptions options = cfg.options;
+  if (!cfg.cfr.empty()) options.cfr = parse_ofdm_grid(cfg.cfr, settings.radio.frequency_hz);
+  if (!fs::exists(args.fcd)) throw std::invalid_argument(args.fcd + ": FCD file not found");
+
+  // Inputs and the run key: a resumed run must continue the same run.
+  std::vector<InputFile> inputs;
+  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
+  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
+  inputs.push_back({"scene", scene_file.string()});
+  inputs.push_back({"fcd", args.fcd});
+  for (const auto& v : args.vtypes) inputs.push_back({"vtypes", v});
+  if (!args.rsus.empty()) inputs.push_back({"rsus", args.rsus});
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!args.vehicles.empty()) inputs.push_back({"vehicle_manifest", (fs::path(args.vehicles) / "manifest.json").string()});
+  json config = settings.to_json();
+  config["sweep"] = cfg.to_json();
+  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
+  // Reproducible provenance: neither resuming, the thread count nor the log
+  // level changes a single number in the file, so none is recorded.
+  std::vector<std::string> recorded_argv;
+  for (std::size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == "--resume" || argv[i] == "-q" || argv[i] == "--quiet") continue;
+    if (argv[i] == "--threads" || argv[i] == "-j") {
+      ++i;
+      continue;
+    }
+    recorded_argv.push_back(argv[i]);
+  }
+  json prov = provenance("sweep", inputs, config, recorded_argv);
+  prov["embree"] = tracer::embree_version();
+  json input_hashes = json::object();
+  for (const auto& f : prov["inputs"]) input_hashes[f.value("role", "") + ":" + f.value("path", "")] = f;
+  const std::string run_key = json{{"config", config}, {"inputs", prov["inputs"]}, {"version", kVersion}}.dump();
+
+  const fs::path out(args.out);
+  const fs::path parts = out.string() + ".parts";
+  if (fs::exists(parts)) {
+    std::ifstream in(parts / "run.json");
+    json run;
+    try {
+      run = json::parse(in);
+    } catch (...) {
+    }
+    if (!args.resume) {
+      spdlog::info("{}: discarding the blocks of an earlier run (use --resume to continue it)", parts.string());
+      fs::remove_all(parts);
+    } else if (run.value("key", "") != run_key) {
+      throw std::invalid_argument(parts.string() + ": the interrupted run used other inputs or settings; "
+                                  "rerun without --resume to start over");
+    }
+  } else if (args.resume) {
+    spdlog::info("{}: nothing to resume, starting from the first frame", args.out);
+  }
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path());
+  fs::create_directories(parts);
+  write_file_atomic(parts / "run.json", json{{"key", run_key}}.dump() + "\n");
+
+  // Scene, library, types, road-side units.
+  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), cfg.exclude_objects));
+  const auto bounds = scene.static_bounds();
+  VehicleLibrary library(args.vehicles, cfg.lod);
+  VTypeMap vtypes;
+  for (const auto& f : args.vtypes) {
+    if (fs::path(f).extension() == ".sumocfg") vtypes.add_sumocfg(f);
+    else vtypes.add_file(f);
+  }
+  std::vector<generators::NodeInfo> node_table;
+  std::map<std::string, std::uint32_t> node_index;
+  std::vector<generators::SweepRsu> rsus;
+  if (!args.rsus.empty()) {
+    for (const auto& r : read_nodes_csv(args.rsus)) {
+      const auto idx = static_cast<std::uint32_t>(node_table.size());
+      node_table.push_back({r.id, generators::NodeKind::rsu, "", "", 0, 0, 0});
+      node_index[r.id] = idx;
+      rsus.push_back({idx, {r.x, r.y, r.z}});
+    }
+  }
+  struct TypeModel {
+    std::uint32_t model;
+    std::string vclass;
+    double length, width, height;
+  };
+  std::map<std::string, std::optional<TypeModel>> type_models;
+  std::set<std::string> warned;
+  auto model_for = [&](const FcdVehicle& v) -> const std::optional<TypeModel>& {
+    auto it = type_models.find(v.type);
+    if (it != type_models.end()) return it->second;
+    const auto resolved = vtypes.resolve(v.type);
+    std::optional<TypeModel> tm;
+    if (!resolved) {
+      spdlog::warn("{}: line {}: vehicle type '{}' is a class raysweep does not model; its vehicles are skipped",
+                   args.fcd, v.line, v.type);
+    } else {
+      if (!resolved->known)
+        spdlog::warn("{}: line {}: vehicle type '{}' is not defined in the vType files; traced as '{}'", args.fcd,
+                     v.line, v.type, resolved->vclass);
+      const meshkit::VehicleModel* m = nullptr;
+      if (!args.vehicles.empty()) {
+        try {
+          m = &library.model(v.type);
+        } catch (const std::exception&) {
+        }
+      }
+      if (!m) m = &library.model(resolved->vclass);
+      const auto dims = m->dims();
+      const std::uint32_t idx = scene.add_vehicle_model(m->name, meshkit::to_scene(*m), m->antenna);
+      tm = TypeModel{idx, resolved->vclass, std::max(dims.length, resolved->length_m),
+                     std::max(dims.width, resolved->width_m), std::max(dims.height, resolved->height_m)};
+    }
+    return type_models.emplace(v.type, tm).first->second;
+  };
+
+  FcdFilter filter;
+  filter.begin_s = cfg.begin_s;
+  filter.end_s = cfg.end_s;
+  filter.step_s = cfg.step_s;
+  filter.ids.insert(cfg.ids.begin(), cfg.ids.end());
+  filter.types.insert(cfg.types.begin(), cfg.types.end());
+  if (!cfg.area.empty()) filter.area = FcdArea{cfg.area[0], cfg.area[1], cfg.area[2], cfg.area[3]};
+  FcdReader reader(args.fcd, filter);
+
+  generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
+  std::vector<generators::FrameRecord> block;
+  std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0, dropped_outside = 0;
+  bool skipping_block = false;
+  json block_stats = json::array();
+  std::set<std::string> selected;  // max_vehicles: the vehicles being traced
+  auto progress_at = std::chrono::steady_clock::now();
+  double first_time = 0, last_time = 0;
+  FcdFrame frame;
+
+  generators::SweepStats before;  // sweep statistics at the start of the block
+  auto commit_block = [&]() {
+    if (block.empty()) return;
+    const fs::path file = parts / (block_name(block_index) + ".bin");
+    const auto& s = sweep.stats();
+    const json st = {{"frames", s.frames - before.frames},
+                     {"links", s.links - before.links},
+                     {"traced_links", s.traced_links - before.traced_links},
+                     {"vehicle_updates", s.vehicle_updates - before.vehicle_updates},
+                     {"updates_deferred", s.updates_deferred - before.updates_deferred},
+                     {"rays", s.rays - before.rays},
+                     {"trace_seconds", s.trace_seconds - before.trace_seconds}};
+    before = s;
+    write_file_atomic(parts / (block_name(block_index) + ".json"), st.dump() + "\n");
+    generators::write_frame_block(file, block);
+    block.clear();
+    // Test hook: die like `kill -9` right after a given number of commits.
+    static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
+    static int committed = 0;
+    if (kill_after && ++committed == std::atoi(kill_after)) std::raise(SIGKILL);
+  };
+
+  while (reader.next(frame)) {
+    if (frame_index % options.block_frames == 0) {
+      if (frame_index > 0) {
+        if (!skipping_block) commit_block();
+        ++block_index;
+      }
+      skipping_block = false;
+      if (args.resume && fs::exists(parts / (block_name(block_index) + ".bin")) &&
+          fs::exists(parts / (block_name(block_index) + ".json"))) {
+        try {
+          generators::read_frame_block(parts / (block_name(block_index) + ".bin"));
+          skipping_block = true;
+          ++blocks_resumed;
+        } catch (const meshkit::InputError& e) {
+          spdlog::warn("{}; tracing that block again", e.what());
+        }
+      }
+    }
+    if (frame_index == 0) first_time = frame.time_s;
+    last_time = frame.time_s;
+
+    // Vehicles of this frame: types, selection, scene bounds, node ids.
+    std::vector<generators::SweepVehicle> vehicles;
+    std::set<std::string> present;
+    for (const auto& v : frame.vehicles) present.insert(v.id);
+    if (cfg.max_vehicles > 0)
+      for (auto it = selected.begin(); it != selected.end();) it = present.count(*it) ? std::next(it) : selected.erase(it);
+    for (const auto& v : frame.vehicles) {
+      const auto& tm = model_for(v);
+      if (!tm) continue;
+      if (cfg.max_vehicles > 0 && !selected.count(v.id)) {
+        if (selected.size() >= cfg.max_vehicles) continue;
+        selected.insert(v.id);
+      }
+      if (v.x < bounds.min[0] || v.x > bounds.max[0] || v.y < bounds.min[1] || v.y > bounds.max[1]) {
+        if (cfg.outside == "error")
+          throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
+                                    "outside the scene (x " + std::to_string(bounds.min[0]) + ".." +
+                                        std::to_string(bounds.max[0]) + ", y " + std::to_string(bounds.min[1]) +
+                                        ".." + std::to_string(bounds.max[1]) +
+                                        "); set [sweep] outside = \"drop\" to skip such vehicles");
+        ++dropped_outside;
+        continue;
+      }
+      auto [it, added] = node_index.emplace(v.id, static_cast<std::uint32_t>(node_table.size()));
+      if (added) {
+        node_table.push_back({v.id, generators::NodeKind::vehicle, tm->vclass, v.type, static_cast<float>(tm->length),
+                              static_cast<float>(tm->width), static_cast<float>(tm->height)});
+      } else if (node_table[it->second].kind == generators::NodeKind::rsu) {
+        throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
+                                  "has the id of a road-side unit in " + args.rsus);
+      }
+      generators::SweepVehicle sv;
+      sv.node = it->second;
+      sv.model = tm->model;
+      sv.position = {finite_or_throw(v.x, "x"), finite_or_throw(v.y, "y"), v.has_z ? v.z : 0.0};
+      sv.heading_deg = v.angle_deg;
+      const double yaw = yaw_from_heading(v.angle_deg);
+      sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
+      sv.length_m = tm->length;
+      sv.width_m = tm->width;
+      sv.height_m = tm->height;
+      vehicles.push_back(sv);
+    }
+    if (!skipping_block) block.push_back(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
+    ++frame_index;
+
+    const auto now = std::chrono::steady_clock::now();
+    if (now - progress_at > std::chrono::seconds(2)) {
+      progress_at = now;
+      const double wall = std::chrono::duration<double>(now - t_start).count();
+      const auto& s = sweep.stats();
+      const double fps = static_cast<double>(s.frames) / wall;
+      std::string eta;
+      const double end = std::min(cfg.end_s, args.eta_end_s >= 0 ? args.eta_end_s : 1e300);
+      if (end < 1e299 && frame_index > 1 && last_time > first_time) {
+        const double dt = (last_time - first_time) / static_cast<double>(frame_index - 1);
+        const double left = std::max(0.0, (end - last_time) / dt);
+        eta = fmt::format(", ETA {:.0f} s", left / std::max(fps, 1e-9));
+      }
+      spdlog::info("frame {} (t = {:.1f} s): {:.1f} frames/s, {:.0f} pair-channels/s, cache hit {:.0f}%{}",
+                   frame_index, frame.time_s, fps, s.links / wall, 100 * s.hit_ratio(), eta);
+    }
+  }
+  if (!skipping_block) commit_block();
+  if (frame_index == 0) throw meshkit::InputError(args.fcd, "", "no frame left after the time/step filters");
+  if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
+
+  // Assemble the dataset from the committed blocks.
+  generators::DatasetHeader header;
+  header.raysweep_version = kVersion;
+  header.git_hash = kGitHash;
+  header.config = config;
+  header.inputs = prov["inputs"];
+  header.provenance = prov;
+  header.seed = 0;
+  header.carrier_hz = settings.radio.frequency_hz;
+  header.bandwidth_hz = settings.radio.bandwidth_hz;
+  if (options.cfr) {
+    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
+    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
+  }
+  const fs::path tmp = out.string() + ".tmp";
+  json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
+                 {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
+  {
+    generators::DatasetWriter writer(tmp, header);
+    for (std::uint64_t b = 0; b <= block_index; ++b) {
+      for (const auto& f : generators::read_frame_block(parts / (block_name(b) + ".bin"))) writer.append(f);
+      std::ifstream in(parts / (block_name(b) + ".json"));
+      const json st = json::parse(in);
+      for (auto& [k, v] : totals.items()) {
+        if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
+        else v = v.get<std::uint64_t>() + st.at(k).get<std::uint64_t>();
+      }
+    }
+    std::vector<std::string> ids;
+    for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
+    writer.finish(node_table, sweep.object_names(ids));
+  }
+  fs::rename(tmp, out);
+  fs::remove_all(parts);
+
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  const auto links = totals["links"].get<std::uint64_t>();
+  const auto traced = totals["traced_links"].get<std::uint64_t>();
+  json summary = totals;
+  summary["out"] = args.out;
+  summary["blocks"] = block_index + 1;
+  summary["blocks_resumed"] = blocks_resumed;
+  summary["nodes"] = node_table.size();
+  summary["cache"] = generators::cache_mode_name(options.cache);
+  summary["cache_hit_ratio"] = links ? 1.0 - static_cast<double>(traced) / links : 0.0;
+  summary["wall_seconds"] = wall;
+  summary["bytes"] = fs::file_size(out);
+  summary["bytes_per_link"] = links ? static_cast<double>(fs::file_size(out)) / links : 0.0;
+  summary["dropped_outside"] = dropped_outside;
+  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s; {} "
+               "({:.0f} bytes per pair-frame)",
+               totals["frames"].get<std::uint64_t>(), blocks_resumed, links, traced,
+               100 * summary["cache_hit_ratio"].get<double>(), wall, args.out, summary["bytes_per_link"].get<double>());
+  return summary;
+}
+
+}  // namespace raysweep::pipeline
