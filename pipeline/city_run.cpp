@@ -10,11 +10,13 @@
 
 #include "generators/dataset_schema.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/toml_fields.hpp"
+#include "pipeline/trace_config.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
 #include "pipeline/version.hpp"
@@ -161,6 +163,12 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const CityConfig city = load_city_config(args.city);
   const fs::path out = args.out.empty() ? fs::path(city.out) : fs::path(args.out);
   const toml::table root = toml::parse_file(args.city);
+  // Every table is checked before the first stage runs: a typo in [sweep]
+  // must not surface after an hour of scene building.
+  load_vehicles_config(args.city);
+  load_trace_config(args.city);
+  load_sweep_config(args.city);
+  if (city.fcd.empty()) load_traffic_args(args.city, city, "");
   const Stamps stamps(out / ".stamps");
   const std::string version = std::string(kVersion) + "+" + kGitHash;
   json summary = {{"city", city.name}, {"out", out.string()}};
@@ -253,6 +261,16 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     s.eta_end_s = eta_end;
     summary["sweep"] = run_sweep_stage(s, argv);
     stamps.mark("sweep", sweep_key);
+  }
+  // The picture people look at first: path gain against distance per LoS class.
+  const fs::path png = out / "dataset.png";
+  if (!fs::exists(png) || fs::last_write_time(png) < fs::last_write_time(dataset)) {
+    if (run_python_script("example_dataset.py", {dataset.string(), "--png", png.string()}))
+      summary["png"] = png.string();
+    else
+      spdlog::warn("{}: no picture (python3 with h5py and matplotlib needed)", png.string());
+  } else {
+    summary["png"] = png.string();
   }
   summary["dataset"] = dataset.string();
   summary["info"] = generators::dataset_info(dataset.string());

@@ -193,8 +193,11 @@ int main(int argc, char** argv) {
     }
     if (rc->parsed()) {
       const auto summary = raysweep::pipeline::run_city(city, args);
-      std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n"
-                << raysweep::generators::format_dataset_info(summary["info"]);
+      std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n";
+      if (summary.contains("png")) std::cout << "picture: " << summary["png"].get<std::string>() << "\n";
+      std::cout << raysweep::generators::format_dataset_info(summary["info"])
+                << "read it in Python: PYTHONPATH=python /usr/bin/python3 python/example_dataset.py "
+                << summary["dataset"].get<std::string>() << "\n";
       if (!summary["valid"].get<bool>()) return 1;
     }
     if (vd->parsed()) {

@@ -205,3 +205,24 @@ TEST(CliSweep, RunSkipsStagesThatAreUpToDate) {
   EXPECT_NE(r.output.find("traffic: up to date"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("sweep: tracing"), std::string::npos) << r.output;
 }
+
+TEST(CliSweep, CityRecipesLoad) {
+  // The demo recipe is the README's main command; the Bad Hersfeld recipe
+  // reads ../shared/data. A bad key in a recipe is a clear error.
+  auto dir = scratch_dir("recipes");
+  const std::string bh = (source_dir() / "datasets/badhersfeld/city.toml").string();
+  if (fs::exists(shared_data() / "dlr-sumo-scenarios-badhersfeld/osm_edited.net.xml.gz")) {
+    // A typo in an otherwise valid copy is caught before any stage runs.
+    std::string text = read_text(bh);
+    const std::string from = "../../../shared/data", to = shared_data().string();
+    for (auto p = text.find(from); p != std::string::npos; p = text.find(from, p + to.size())) text.replace(p, from.size(), to);
+    write_text(dir / "bh.toml", text + "\n[sweep.extra]\n");
+    auto r = run_raysweep("run " + (dir / "bh.toml").string() + " --out " + (dir / "out").string());
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("bh.toml"), std::string::npos) << r.output;
+  }
+  write_text(dir / "demo.toml", read_text(source_dir() / "datasets/demo/city.toml") + "[traffic.oops]\n");
+  auto r = run_raysweep("run " + (dir / "demo.toml").string() + " --out " + (dir / "o").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "o"));
+}
