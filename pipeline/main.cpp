@@ -34,6 +34,18 @@ std::optional<raysweep::meshkit::Vec2> parse_offset(const std::string& s) {
   return raysweep::meshkit::Vec2{x, y};
 }
 
+// "passenger:8,truck:1,bus" -> {passenger: 8, truck: 1, bus: 1}.
+std::map<std::string, double> parse_class_mix(const std::string& s) {
+  std::map<std::string, double> mix;
+  std::istringstream in(s);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    const auto colon = item.find(':');
+    mix[item.substr(0, colon)] = colon == std::string::npos ? 1.0 : std::stod(item.substr(colon + 1));
+  }
+  return mix;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -174,15 +186,7 @@ int main(int argc, char** argv) {
                 << " paths\n";
     }
     if (tf->parsed()) {
-      if (!traffic_classes.empty()) {
-        traffic.classes.clear();
-        std::istringstream in(traffic_classes);
-        std::string item;
-        while (std::getline(in, item, ',')) {
-          const auto colon = item.find(':');
-          traffic.classes[item.substr(0, colon)] = colon == std::string::npos ? 1.0 : std::stod(item.substr(colon + 1));
-        }
-      }
+      if (!traffic_classes.empty()) traffic.classes = parse_class_mix(traffic_classes);
       const auto rec = raysweep::pipeline::run_traffic_stage(traffic, args);
       std::cout << traffic.out << ": " << rec["fcd"].get<std::string>() << " (" << rec["fcd_bytes"] << " bytes)\n";
     }
@@ -215,14 +219,7 @@ int main(int argc, char** argv) {
       else std::cout << raysweep::generators::format_dataset_info(info);
     }
     if (pc->parsed()) {
-      std::map<std::string, double> mix;
-      std::istringstream in(poses_mix);
-      std::string item;
-      while (std::getline(in, item, ',')) {
-        const auto colon = item.find(':');
-        const std::string name = item.substr(0, colon);
-        mix[name] = colon == std::string::npos ? 1.0 : std::stod(item.substr(colon + 1));
-      }
+      const auto mix = parse_class_mix(poses_mix);
       const auto net = raysweep::meshkit::read_sumo_network(poses_net);
       const auto rows = raysweep::pipeline::place_on_lanes(net, poses_count, poses_seed, mix, poses_gap);
       raysweep::pipeline::write_file_atomic(poses_out, raysweep::pipeline::poses_csv(rows));

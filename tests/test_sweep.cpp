@@ -30,13 +30,7 @@ struct Canyon {
     add_box_object(s, {-80, 10, 0}, {80, 30, 12}, "brick", "way/2");
     return s;
   }
-  Canyon() : scene(geometry()) {
-    pipeline::VehicleLibrary lib;
-    const auto& c = lib.model("passenger");
-    car = scene.add_vehicle_model("passenger", meshkit::to_scene(c), c.antenna);
-    const auto& b = lib.model("bus");
-    bus = scene.add_vehicle_model("bus", meshkit::to_scene(b), b.antenna);
-  }
+  Canyon() : scene(geometry()), car(add_library_model(scene, "passenger")), bus(add_library_model(scene, "bus")) {}
 };
 
 SweepVehicle vehicle(std::uint32_t node, std::uint32_t model, double x, double y, double speed_east,

@@ -30,13 +30,7 @@ struct Street {
     add_box_object(s, {-40, -30, 0}, {40, -12, 15}, "concrete", "way/1");
     return s;
   }
-  Street() : scene(geometry()) {
-    pipeline::VehicleLibrary lib;
-    const auto& c = lib.model("passenger");
-    car = scene.add_vehicle_model("passenger", meshkit::to_scene(c), c.antenna);
-    const auto& b = lib.model("bus");
-    bus = scene.add_vehicle_model("bus", meshkit::to_scene(b), b.antenna);
-  }
+  Street() : scene(geometry()), car(add_library_model(scene, "passenger")), bus(add_library_model(scene, "bus")) {}
   // Vehicles along the x axis heading east (yaw 0), front bumper at x.
   tracer::VehiclePose at(const std::string& id, std::uint32_t model, double x, double y, double speed = 0) {
     return tracer::VehiclePose{id, model, {x, y, 0}, 0, {speed, 0, 0}};

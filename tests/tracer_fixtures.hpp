@@ -5,10 +5,19 @@
 #include <string>
 
 #include "meshkit/scene.hpp"
+#include "meshkit/vehicle_model.hpp"
+#include "pipeline/trace_inputs.hpp"
 #include "scene_fixtures.hpp"
 #include "tracer/tracer.hpp"
 
 namespace raysweep::test {
+
+// Registers the built-in parametric model of a class; returns its index.
+inline std::uint32_t add_library_model(tracer::TraceScene& scene, const std::string& vclass) {
+  pipeline::VehicleLibrary lib;
+  const auto& m = lib.model(vclass);
+  return scene.add_vehicle_model(vclass, meshkit::to_scene(m), m.antenna);
+}
 
 // The next unused planar-face id of a scene.
 inline std::uint32_t next_face_id(const meshkit::Scene& scene) {
