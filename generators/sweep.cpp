@@ -175,6 +175,9 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
       trace = std::binary_search(updated.begin(), updated.end(), node_of[i]) ||
               std::binary_search(updated.begin(), updated.end(), node_of[j]);
       const auto& c = it->second;
+      // A pair without paths has no ellipsoid to speak of, and any new path
+      // is its strongest: retrace it on any move (its sources shoot anyway).
+      if (c.link.path_count == 0 && !moved.empty()) trace = true;
       for (std::size_t s = 0; !trace && s < moved.size(); ++s) {
         const Sphere& m = moved[s];
         const double r = m.r + options_.cache_margin_m;

@@ -9,7 +9,8 @@
 //   vehicle that changed at all (exact tracing).
 // - The path cache. `global` (the paper): any update clears every pair.
 //   `per_pair`: an update invalidates the pairs the vehicle belongs to, the
-//   pairs with a stored path segment or the direct segment within the
+//   pairs without any path (on any move), the pairs with a stored path
+//   segment or the direct segment within the
 //   margin of the vehicle's old or new bounding sphere, and the pairs whose
 //   "strong" ellipsoid (foci at the two antennas, sum of distances up to the
 //   strongest stored path's length plus the margin) meets either sphere. A
