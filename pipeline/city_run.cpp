@@ -1,6 +1,5 @@
 #include "pipeline/city_run.hpp"
 
-#include <openssl/evp.h>
 #include <spdlog/spdlog.h>
 #include <toml++/toml.h>
 
@@ -28,19 +27,6 @@ using json = nlohmann::json;
 using namespace toml_fields;
 
 namespace {
-
-std::string sha256_text(const std::string& s) {
-  unsigned char md[EVP_MAX_MD_SIZE];
-  unsigned int len = 0;
-  EVP_Digest(s.data(), s.size(), md, &len, EVP_sha256(), nullptr);
-  static const char* hex = "0123456789abcdef";
-  std::string out;
-  for (unsigned int i = 0; i < len; ++i) {
-    out += hex[md[i] >> 4];
-    out += hex[md[i] & 15];
-  }
-  return out;
-}
 
 // The tables of the city file that configure a stage, as canonical text.
 std::string tables_text(const toml::table& root, const std::vector<std::string>& names) {

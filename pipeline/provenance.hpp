@@ -11,6 +11,7 @@
 namespace raysweep::pipeline {
 
 std::string sha256_file(const std::string& path);  // hex; throws on unreadable files
+std::string sha256_text(const std::string& text);  // hex
 
 struct InputFile {
   std::string role;  // "osm", "net", "config", ...

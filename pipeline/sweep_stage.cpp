@@ -51,11 +51,6 @@ std::string block_name(std::uint64_t b) {
   return buf;
 }
 
-double finite_or_throw(double v, const std::string& what) {
-  if (!std::isfinite(v)) throw std::invalid_argument(what + " is not finite");
-  return v;
-}
-
 }  // namespace
 
 json SweepConfig::to_json() const {
@@ -178,8 +173,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   }
   json prov = provenance("sweep", inputs, config, recorded_argv);
   prov["embree"] = tracer::embree_version();
-  json input_hashes = json::object();
-  for (const auto& f : prov["inputs"]) input_hashes[f.value("role", "") + ":" + f.value("path", "")] = f;
   const std::string run_key = json{{"config", config}, {"inputs", prov["inputs"]}, {"version", kVersion}}.dump();
 
   const fs::path out(args.out);
@@ -356,7 +349,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       generators::SweepVehicle sv;
       sv.node = it->second;
       sv.model = tm->model;
-      sv.position = {finite_or_throw(v.x, "x"), finite_or_throw(v.y, "y"), v.has_z ? v.z : 0.0};
+      sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
       sv.heading_deg = v.angle_deg;
       const double yaw = yaw_from_heading(v.angle_deg);
       sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
