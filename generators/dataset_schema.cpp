@@ -1,9 +1,11 @@
-// Validation and summary of channel dataset files, driven by the embedded schema
-// (schemas/raysweep_dataset.schema.json): structure, types and shapes come from
-// the schema's groups/datasets/attributes, codes from its code tables, offset and
-// reference checks from the datasets' "offsets" and "references" entries; the
-// cross-dataset rules of links (sorting, presence of nodes, flags vs paths) are
-// written out below.
+// Validation and summary of raysweep files, driven by the embedded schemas:
+// channel datasets (schemas/raysweep_dataset.schema.json) and SINR outcome files
+// (schemas/raysweep_sinr.schema.json), told apart by the root `format`
+// attribute. Structure, types and shapes come from the schema's groups/datasets/
+// attributes, codes from its code tables, offset and reference checks from the
+// datasets' "offsets" and "references" entries; each format's cross-dataset
+// rules (channel: link sorting, presence of nodes, flags vs paths; SINR:
+// schedule order, receptions vs transmissions, overlaps, PRR) are written out below.
 #include "generators/dataset_schema.hpp"
 
 #include <hdf5.h>
@@ -13,9 +15,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <cmath>
-#include <cctype>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -25,14 +25,16 @@
 #include <stdexcept>
 
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_util.hpp"
+#include "generators/hdf5_columns.hpp"
+#include "generators/sinr/sinr_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
 
 namespace embedded {
 extern const char kDatasetSchemaJson[];  // generated from schemas/raysweep_dataset.schema.json
-}
+extern const char kSinrSchemaJson[];     // generated from schemas/raysweep_sinr.schema.json
+}  // namespace embedded
 
 const std::string& dataset_schema_json() {
   static const std::string text(embedded::kDatasetSchemaJson);
@@ -44,156 +46,44 @@ const nlohmann::json& dataset_schema() {
   return schema;
 }
 
+const std::string& sinr_schema_json() {
+  static const std::string text(embedded::kSinrSchemaJson);
+  return text;
+}
+
+const nlohmann::json& sinr_schema() {
+  static const nlohmann::json schema = nlohmann::json::parse(sinr_schema_json());
+  return schema;
+}
+
 namespace {
 
-using hdf5::Closer;
+using hdf5::BlockReader;
+using hdf5::dataset_dims;
 using hdf5::Handle;
-using hdf5::QuietHdf5;
+using hdf5::has_attr;
+using hdf5::has_link;
 using hdf5::hdf5_error_text;
+using hdf5::kBlockRows;
+using hdf5::major_version;
+using hdf5::QuietHdf5;
+using hdf5::read_f64;
+using hdf5::read_fail;
+using hdf5::read_num_attr;
+using hdf5::read_rows;
+using hdf5::read_str_attr;
+using hdf5::read_u64;
+using hdf5::ReadError;
+using hdf5::type_mismatch;
 
-
-// Thrown by the readers below; the validator turns it into a problem.
-struct ReadError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
-
-[[noreturn]] void read_fail(const std::string& object, const std::string& what) {
-  std::string msg = object + ": " + what;
-  const std::string h5 = hdf5_error_text();
-  if (!h5.empty()) msg += " (" + h5 + ")";
-  throw ReadError(msg);
+// The schema of a format name; nullptr for formats this program does not know.
+const nlohmann::json* schema_of(const std::string& format) {
+  if (format == kDatasetFormat) return &dataset_schema();
+  if (format == sinr::kSinrFormat) return &sinr_schema();
+  return nullptr;
 }
 
-// ---------------------------------------------------------------------------
-// Types.
-
-// "" when the HDF5 type matches the schema dtype, else a description of the type.
-std::string type_mismatch(hid_t type, const std::string& dtype) {
-  const H5T_class_t cls = H5Tget_class(type);
-  const std::size_t size = H5Tget_size(type);
-  auto describe = [&]() -> std::string {
-    switch (cls) {
-      case H5T_INTEGER:
-        return (H5Tget_sign(type) == H5T_SGN_NONE ? "unsigned " : "signed ") + std::to_string(8 * size) + "-bit integer";
-      case H5T_FLOAT: return std::to_string(8 * size) + "-bit float";
-      case H5T_STRING:
-        return H5Tis_variable_str(type) > 0 ? "variable-length string" : std::to_string(size) + "-byte fixed string";
-      case H5T_COMPOUND: return "compound of " + std::to_string(H5Tget_nmembers(type)) + " members";
-      default: return "type class " + std::to_string(static_cast<int>(cls));
-    }
-  };
-  bool ok = false;
-  if (dtype.size() >= 2 && dtype[0] == 'u' && std::isdigit(static_cast<unsigned char>(dtype[1]))) {
-    ok = cls == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_NONE && 8 * size == std::stoul(dtype.substr(1));
-  } else if (dtype == "f32" || dtype == "f64") {
-    ok = cls == H5T_FLOAT && 8 * size == std::stoul(dtype.substr(1));
-  } else if (dtype == "str") {
-    ok = cls == H5T_STRING && H5Tis_variable_str(type) > 0;
-  } else if (dtype == "c64") {
-    ok = cls == H5T_COMPOUND && size == 8 && H5Tget_nmembers(type) == 2;
-    for (unsigned m = 0; ok && m < 2; ++m) {
-      char* name = H5Tget_member_name(type, m);
-      const std::string expect = m == 0 ? "r" : "i";
-      ok = name && expect == name && H5Tget_member_offset(type, m) == 4 * m;
-      if (name) H5free_memory(name);
-      Handle mt(H5Tget_member_type(type, m), H5Tclose);
-      ok = ok && mt.valid() && H5Tget_class(mt.get()) == H5T_FLOAT && H5Tget_size(mt.get()) == 4;
-    }
-    if (cls == H5T_COMPOUND && !ok) return "compound other than {r: f32, i: f32}";
-  }
-  return ok ? std::string() : describe();
-}
-
-bool has_link(hid_t loc, const std::string& name) {
-  const htri_t r = H5Lexists(loc, name.c_str(), H5P_DEFAULT);
-  H5Eclear2(H5E_DEFAULT);
-  return r > 0;
-}
-
-bool has_attr(hid_t loc, const std::string& name) {
-  const htri_t r = H5Aexists(loc, name.c_str());
-  H5Eclear2(H5E_DEFAULT);
-  return r > 0;
-}
-
-// Scalar attribute readers (the type has been checked; the library converts).
-std::string read_str_attr(hid_t loc, const std::string& where, const std::string& name) {
-  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
-  if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
-  Handle ftype(H5Aget_type(attr.get()), H5Tclose);
-  if (!ftype.valid()) read_fail(where + "attribute " + name, "cannot get type");
-  if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(where + "attribute " + name, "not a string");
-  Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (H5Tis_variable_str(ftype.get()) > 0) {
-    if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
-        H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
-      read_fail(where + "attribute " + name, "cannot make string type");
-    char* p = nullptr;
-    if (H5Aread(attr.get(), mtype.get(), &p) < 0) read_fail(where + "attribute " + name, "cannot read");
-    std::string s = p ? p : "";
-    if (p) H5free_memory(p);
-    return s;
-  }
-  const std::size_t size = H5Tget_size(ftype.get());
-  std::string s(size + 1, '\0');
-  if (!mtype.valid() || H5Tset_size(mtype.get(), size + 1) < 0 ||
-      H5Aread(attr.get(), mtype.get(), s.data()) < 0)
-    read_fail(where + "attribute " + name, "cannot read");
-  s.resize(std::strlen(s.c_str()));
-  return s;
-}
-
-template <class T>
-T read_num_attr(hid_t loc, const std::string& where, const std::string& name, hid_t mtype) {
-  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
-  if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
-  Handle space(H5Aget_space(attr.get()), H5Sclose);
-  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1)
-    read_fail(where + "attribute " + name, "not a single value");
-  T v{};
-  if (H5Aread(attr.get(), mtype, &v) < 0) read_fail(where + "attribute " + name, "cannot read");
-  return v;
-}
-
-std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name) {
-  Handle space(H5Dget_space(dset), H5Sclose);
-  if (!space.valid()) read_fail(name, "cannot get dataspace");
-  const int rank = H5Sget_simple_extent_ndims(space.get());
-  if (rank < 0) read_fail(name, "cannot get rank");
-  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
-  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) read_fail(name, "cannot get shape");
-  return dims;
-}
-
-// Reads rows [start, start + rows) of a dataset (width elements per row) converted
-// to the memory type of T.
-template <class T>
-std::vector<T> read_rows(hid_t dset, const std::string& name, hid_t mtype, hsize_t start, hsize_t rows,
-                         hsize_t width = 1) {
-  std::vector<T> out(static_cast<std::size_t>(rows * width));
-  if (rows == 0) return out;
-  const auto dims = dataset_dims(dset, name);
-  const int rank = static_cast<int>(dims.size());
-  Handle fspace(H5Dget_space(dset), H5Sclose);
-  const hsize_t s[2] = {start, 0};
-  const hsize_t c[2] = {rows, width};
-  if (!fspace.valid() || rank < 1 || rank > 2 ||
-      H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr) < 0)
-    read_fail(name, "cannot select rows");
-  Handle mspace(H5Screate_simple(rank, c, nullptr), H5Sclose);
-  if (!mspace.valid() || H5Dread(dset, mtype, mspace.get(), fspace.get(), H5P_DEFAULT, out.data()) < 0)
-    read_fail(name, "cannot read rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1));
-  return out;
-}
-
-std::vector<std::uint64_t> read_u64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
-  return read_rows<std::uint64_t>(dset, name, H5T_NATIVE_UINT64, start, rows);
-}
-std::vector<double> read_f64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
-  return read_rows<double>(dset, name, H5T_NATIVE_DOUBLE, start, rows);
-}
-
-constexpr hsize_t kBlockRows = hsize_t{1} << 18;  // rows per read while streaming a column
+std::string known_formats() { return std::string(kDatasetFormat) + ", " + sinr::kSinrFormat; }
 
 // Counts the rows that break a rule and remembers the first.
 struct Tally {
@@ -208,59 +98,41 @@ struct Tally {
   }
 };
 
-std::optional<int> major_version(const std::string& v) {
-  int major = 0, minor = 0, patch = 0;
-  char tail = 0;
-  if (std::sscanf(v.c_str(), "%d.%d.%d%c", &major, &minor, &patch, &tail) != 3 || major < 0) return std::nullopt;
-  return major;
-}
-
-int supported_major() { return *major_version(kDatasetSchemaVersion); }
-
 // ---------------------------------------------------------------------------
 
+// Checks common to every format, driven by the schema: attributes, groups,
+// datasets (type, shape, symbolic dimensions, units), root counts, codes, bits,
+// references, offsets, and a full read of every dataset. The format's own
+// cross-dataset rules come from rules().
 class Validator {
  public:
-  Validator(std::string path, std::vector<std::string>& problems) : path_(std::move(path)), problems_(problems) {}
+  Validator(std::string path, Handle fid, const nlohmann::json& schema, std::vector<std::string>& problems)
+      : path_(std::move(path)), problems_(problems), fid_(std::move(fid)), schema_(schema),
+        supported_major_(major_version(schema.at("schema_version").get<std::string>()).value_or(-1)) {}
+  virtual ~Validator() = default;
 
   void run() {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path_, ec)) {
-      problem(path_ + ": not a readable file");
-      return;
-    }
-    if (H5Fis_hdf5(path_.c_str()) <= 0) {
-      hdf5_error_text();
-      problem(path_ + ": not an HDF5 file (or unreadable)");
-      return;
-    }
-    fid_ = Handle(H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!fid_.valid()) {
-      const std::string h5 = hdf5_error_text();
-      problem(path_ + ": cannot open as HDF5 (truncated or corrupt?)" + (h5.empty() ? "" : ": " + h5));
-      return;
-    }
-    const auto& schema = dataset_schema();
-    check_attributes(fid_.get(), "/", schema.at("attributes"));
-    for (const auto& g : schema.at("groups")) check_group(g);
-    check_root_counts(schema.at("attributes"));
-    for (const auto& g : schema.at("groups"))
+    check_attributes(fid_.get(), "/", schema_.at("attributes"));
+    for (const auto& g : schema_.at("groups")) check_group(g);
+    check_root_counts(schema_.at("attributes"));
+    for (const auto& g : schema_.at("groups"))
       for (const auto& d : g.at("datasets")) guarded(path_of(g, d), [&] { check_values(g, d); });
-    guarded("/frames/time_s", [&] { check_times(); });
-    guarded("/node_states", [&] { check_node_states(); });
-    guarded("/links", [&] { check_links(); });
+    rules();
     for (const auto& [p, ds] : good_) guarded(p, [&] { check_readable(p, ds.get()); });
   }
 
- private:
+ protected:
+  virtual void rules() {}
+
   std::string path_;
   std::vector<std::string>& problems_;
   Handle fid_;
+  const nlohmann::json& schema_;
+  int supported_major_;
   std::map<std::string, Handle> groups_;
   std::map<std::string, Handle> good_;                         // datasets with the right type and shape
   std::map<std::string, std::pair<hsize_t, std::string>> dims_;  // symbol -> value, where it came from
   std::set<std::string> offsets_ok_;                           // offset datasets that passed
-  bool node_states_sorted_ = false;
 
   void problem(std::string s) { problems_.push_back(std::move(s)); }
 
@@ -366,13 +238,18 @@ class Validator {
           if (a.contains("value") && v != a.at("value").get<std::string>())
             problem(label + " is \"" + v + "\", expected \"" + a.at("value").get<std::string>() + "\"");
           if (a.value("json", false) && !nlohmann::json::accept(v)) problem(label + ": not valid JSON text");
+          if (a.contains("one_of")) {
+            const auto& allowed = a.at("one_of");
+            if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
+              problem(label + " is \"" + v + "\", expected one of " + allowed.dump());
+          }
           if (name == "schema_version") {
             const auto major = major_version(v);
             if (!major)
               problem(label + " \"" + v + "\" is not a MAJOR.MINOR.PATCH version");
-            else if (*major != supported_major())
+            else if (*major != supported_major_)
               problem(label + " is " + v + ": major version " + std::to_string(*major) +
-                      " is not supported (this program reads " + std::to_string(supported_major()) + ".x)");
+                      " is not supported (this program reads " + std::to_string(supported_major_) + ".x)");
           }
         } else if (dtype[0] == 'u') {
           const auto v = read_num_attr<std::uint64_t>(loc, where, name, H5T_NATIVE_UINT64);
@@ -380,6 +257,9 @@ class Validator {
           if (a.contains("value") && v != a.at("value").get<std::uint64_t>())
             problem(label + " is " + std::to_string(v) + ", expected " + a.at("value").dump());
           if (a.contains("defines_dim")) bind(a.at("defines_dim"), v, label, "is");
+          if (a.contains("codes") &&
+              !schema_.at("codes").at(a.at("codes").get<std::string>()).at("values").contains(std::to_string(v)))
+            problem(label + " is " + std::to_string(v) + ", not in the code table " + a.at("codes").get<std::string>());
         } else {
           const auto v = read_num_attr<double>(loc, where, name, H5T_NATIVE_DOUBLE);
           if (!std::isfinite(v)) problem(label + " is not finite");
@@ -489,7 +369,7 @@ class Validator {
     const std::string p = path_of(g, d);
     const hid_t ds = dset(p);
     if (ds < 0) return;
-    const auto& codes = dataset_schema().at("codes");
+    const auto& codes = schema_.at("codes");
     std::set<std::uint64_t> allowed;
     std::string allowed_text;
     if (d.contains("codes")) {
@@ -557,6 +437,22 @@ class Validator {
       if (ok && total) offsets_ok_.insert(p);
     }
   }
+};
+
+// Rules of the channel dataset (raysweep-channels) beyond the schema.
+class ChannelValidator : public Validator {
+ public:
+  using Validator::Validator;
+
+ protected:
+  void rules() override {
+    guarded("/frames/time_s", [&] { check_times(); });
+    guarded("/node_states", [&] { check_node_states(); });
+    guarded("/links", [&] { check_links(); });
+  }
+
+ private:
+  bool node_states_sorted_ = false;
 
   void check_times() {
     const hid_t ds = dset("/frames/time_s");
@@ -659,6 +555,221 @@ class Validator {
   std::pair<std::uint64_t, std::uint64_t> prev_{0, 0};
 };
 
+// Rules of the SINR outcome file (raysweep-sinr) beyond the schema: schedule
+// order and physical sanity of the transmissions, receptions sorted and agreeing
+// with their transmission, overlap rows agreeing with their reception, PRR values.
+class SinrValidator : public Validator {
+ public:
+  using Validator::Validator;
+
+ protected:
+  void rules() override {
+    guarded("/transmissions", [&] { check_transmissions(); });
+    guarded("/receptions", [&] { check_receptions(); });
+    guarded("/prr_links", [&] { check_prr("prr_links"); });
+    guarded("/prr_rats", [&] { check_prr("prr_rats"); });
+  }
+
+ private:
+  void check_transmissions() {
+    const hid_t start = dset("/transmissions/start_s"), dur = dset("/transmissions/duration_s");
+    const hid_t band = dset("/transmissions/band_hz"), rat = dset("/transmissions/rat");
+    Tally order, duration, band_bad, rat_none;
+    double prev = -std::numeric_limits<double>::infinity();
+    if (start >= 0) {
+      const hsize_t rows = dataset_dims(start, "/transmissions/start_s")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const auto t = read_f64(start, "/transmissions/start_s", s, std::min(kBlockRows, rows - s));
+        for (std::size_t i = 0; i < t.size(); ++i) {
+          if (!std::isfinite(t[i]))
+            order.add(s + i, "not finite");
+          else if (t[i] < prev)
+            order.add(s + i, std::to_string(t[i]) + " s after " + std::to_string(prev) + " s");
+          if (std::isfinite(t[i])) prev = t[i];
+        }
+      }
+    }
+    if (dur >= 0) {
+      const hsize_t rows = dataset_dims(dur, "/transmissions/duration_s")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const auto d = read_f64(dur, "/transmissions/duration_s", s, std::min(kBlockRows, rows - s));
+        for (std::size_t i = 0; i < d.size(); ++i)
+          if (!(std::isfinite(d[i]) && d[i] > 0)) duration.add(s + i, std::to_string(d[i]) + " s");
+      }
+    }
+    if (band >= 0) {
+      const hsize_t rows = dataset_dims(band, "/transmissions/band_hz")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const hsize_t n = std::min(kBlockRows, rows - s);
+        const auto b = read_rows<double>(band, "/transmissions/band_hz", H5T_NATIVE_DOUBLE, s, n, 2);
+        for (hsize_t i = 0; i < n; ++i) {
+          const double lo = b[2 * i], hi = b[2 * i + 1];
+          if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi))
+            band_bad.add(s + i, "[" + std::to_string(lo) + ", " + std::to_string(hi) + "] Hz");
+        }
+      }
+    }
+    if (rat >= 0) {
+      const hsize_t rows = dataset_dims(rat, "/transmissions/rat")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const auto r = read_u64(rat, "/transmissions/rat", s, std::min(kBlockRows, rows - s));
+        for (std::size_t i = 0; i < r.size(); ++i)
+          if (r[i] == 0) rat_none.add(s + i, "rat 0");
+      }
+    }
+    order.report(problems_, "/transmissions/start_s", "not finite or before the previous transmission's start");
+    duration.report(problems_, "/transmissions/duration_s", "not finite and > 0");
+    band_bad.report(problems_, "/transmissions/band_hz", "without finite f_lo < f_hi");
+    rat_none.report(problems_, "/transmissions/rat", "of RAT none (0)");
+  }
+
+  // A column of /transmissions read as u64 or f64 for lookups by row; empty reader
+  // when the dataset failed the structural checks.
+  std::optional<BlockReader<std::uint64_t>> tx_u64(const std::string& name) const {
+    const std::string p = "/transmissions/" + name;
+    const hid_t ds = dset(p);
+    if (ds < 0) return std::nullopt;
+    return BlockReader<std::uint64_t>(ds, p, H5T_NATIVE_UINT64, dataset_dims(ds, p)[0]);
+  }
+
+  void check_receptions() {
+    const hid_t tr = dset("/receptions/transmission"), tx = dset("/receptions/tx"), rx = dset("/receptions/rx");
+    if (tr < 0) return;
+    const hsize_t rows = dataset_dims(tr, "/receptions/transmission")[0];
+    const hsize_t transmissions = dim("T").value_or(0);
+    auto t_node = tx_u64("node"), t_rat = tx_u64("rat"), t_packet = tx_u64("packet"), t_attempt = tx_u64("attempt");
+    std::optional<BlockReader<double>> t_start;
+    if (const hid_t ds = dset("/transmissions/start_s"); ds >= 0)
+      t_start.emplace(ds, "/transmissions/start_s", H5T_NATIVE_DOUBLE, dataset_dims(ds, "/transmissions/start_s")[0]);
+
+    // The RAT of every transmission, for the inter_rat flag of overlaps (random access).
+    std::vector<std::uint8_t> rat_of;
+    if (t_rat)
+      for (hsize_t i = 0; i < t_rat->rows(); ++i) rat_of.push_back(static_cast<std::uint8_t>(t_rat->at(i)));
+
+    // Overlap rows, when their offsets passed (so every range lies inside /interferers).
+    const bool overlaps = offsets_ok_.count("/receptions/overlap_offset") > 0;
+    const hid_t o_tr = dset("/interferers/transmission"), o_counted = dset("/interferers/counted");
+    const hid_t o_inter = dset("/interferers/inter_rat");
+    std::optional<BlockReader<std::uint64_t>> ov_tr, ov_counted, ov_inter;
+    const hsize_t x = dim("X").value_or(0);
+    if (overlaps && o_tr >= 0) ov_tr.emplace(o_tr, "/interferers/transmission", H5T_NATIVE_UINT64, x);
+    if (overlaps && o_counted >= 0) ov_counted.emplace(o_counted, "/interferers/counted", H5T_NATIVE_UINT64, x);
+    if (overlaps && o_inter >= 0) ov_inter.emplace(o_inter, "/interferers/inter_rat", H5T_NATIVE_UINT64, x);
+
+    auto column = [&](const char* name, hsize_t start, hsize_t n) {
+      const std::string p = std::string("/receptions/") + name;
+      const hid_t ds = dset(p);
+      return ds < 0 ? std::vector<std::uint64_t>() : read_u64(ds, p, start, n);
+    };
+    Tally unsorted, self, tx_bad, rat_bad, packet_bad, attempt_bad, time_bad, count_bad, own, inter_bad;
+    std::pair<std::uint64_t, std::uint64_t> prev{0, 0};
+    for (hsize_t start = 0; start < rows; start += kBlockRows) {
+      const hsize_t n = std::min(kBlockRows, rows - start);
+      const auto t = read_u64(tr, "/receptions/transmission", start, n);
+      const auto s = tx >= 0 ? read_u64(tx, "/receptions/tx", start, n) : std::vector<std::uint64_t>();
+      const auto r = rx >= 0 ? read_u64(rx, "/receptions/rx", start, n) : std::vector<std::uint64_t>();
+      const auto rat = column("rat", start, n), packet = column("packet", start, n), attempt = column("attempt", start, n);
+      const auto counted = column("interferers", start, n);
+      const auto ocount = overlaps ? column("overlap_count", start, n) : std::vector<std::uint64_t>();
+      const auto ooffset = overlaps ? column("overlap_offset", start, n) : std::vector<std::uint64_t>();
+      std::vector<double> time;
+      if (const hid_t ds = dset("/receptions/time_s"); ds >= 0) time = read_f64(ds, "/receptions/time_s", start, n);
+      for (hsize_t i = 0; i < n; ++i) {
+        const std::uint64_t row = start + i;
+        if (!r.empty()) {
+          const std::pair<std::uint64_t, std::uint64_t> key{t[i], r[i]};
+          if (row > 0 && !(prev < key))
+            unsorted.add(row, "(" + std::to_string(t[i]) + ", " + std::to_string(r[i]) + ") after (" +
+                                  std::to_string(prev.first) + ", " + std::to_string(prev.second) + ")");
+          prev = key;
+          if (!s.empty() && s[i] == r[i]) self.add(row, "node " + std::to_string(r[i]));
+        }
+        if (t[i] >= transmissions) continue;  // out of range: reported by the reference check
+        auto at = [&] { return "transmission " + std::to_string(t[i]); };
+        if (!s.empty() && t_node && s[i] != t_node->at(t[i]))
+          tx_bad.add(row, "tx " + std::to_string(s[i]) + ", " + at() + " is sent by node " + std::to_string(t_node->at(t[i])));
+        if (!rat.empty() && t_rat && rat[i] != t_rat->at(t[i]))
+          rat_bad.add(row, "rat " + std::to_string(rat[i]) + ", " + at() + " has " + std::to_string(t_rat->at(t[i])));
+        if (!packet.empty() && t_packet && packet[i] != t_packet->at(t[i]))
+          packet_bad.add(row, "packet " + std::to_string(packet[i]) + ", " + at() + " has " + std::to_string(t_packet->at(t[i])));
+        if (!attempt.empty() && t_attempt && attempt[i] != t_attempt->at(t[i]))
+          attempt_bad.add(row, "attempt " + std::to_string(attempt[i]) + ", " + at() + " has " +
+                                   std::to_string(t_attempt->at(t[i])));
+        if (!time.empty() && t_start && !(time[i] == t_start->at(t[i])))
+          time_bad.add(row, std::to_string(time[i]) + " s, " + at() + " starts at " + std::to_string(t_start->at(t[i])) + " s");
+        if (!ooffset.empty() && ov_tr) {
+          std::uint64_t c = 0;
+          for (std::uint64_t k = ooffset[i]; k < ooffset[i] + ocount[i]; ++k) {
+            const std::uint64_t other = ov_tr->at(k);
+            if (other == t[i]) own.add(k, "reception row " + std::to_string(row) + " overlaps its own " + at());
+            if (ov_counted && ov_counted->at(k) == 1) ++c;
+            if (ov_inter && !rat.empty() && other < rat_of.size() && ov_inter->at(k) != (rat_of[other] != rat[i] ? 1u : 0u))
+              inter_bad.add(k, "inter_rat " + std::to_string(ov_inter->at(k)) + " but transmission " +
+                                   std::to_string(other) + " has rat " + std::to_string(rat_of[other]) +
+                                   " and the reception " + std::to_string(rat[i]));
+          }
+          if (ov_counted && !counted.empty() && counted[i] != c)
+            count_bad.add(row, std::to_string(counted[i]) + " interferers, " + std::to_string(c) + " counted overlap rows");
+        }
+      }
+    }
+    unsorted.report(problems_, "/receptions/transmission", "not strictly sorted by (transmission, rx)");
+    self.report(problems_, "/receptions/rx", "equal to /receptions/tx");
+    tx_bad.report(problems_, "/receptions/tx", "differing from /transmissions/node of their transmission");
+    rat_bad.report(problems_, "/receptions/rat", "differing from /transmissions/rat of their transmission");
+    packet_bad.report(problems_, "/receptions/packet", "differing from /transmissions/packet of their transmission");
+    attempt_bad.report(problems_, "/receptions/attempt", "differing from /transmissions/attempt of their transmission");
+    time_bad.report(problems_, "/receptions/time_s", "differing from /transmissions/start_s of their transmission");
+    count_bad.report(problems_, "/receptions/interferers",
+                     "differing from the number of their /interferers rows with counted = 1");
+    own.report(problems_, "/interferers/transmission", "naming the reception's own transmission");
+    inter_bad.report(problems_, "/interferers/inter_rat", "disagreeing with the RATs of the transmissions");
+  }
+
+  // received <= packets; prr = received / packets (NaN when packets = 0); links tx != rx.
+  void check_prr(const std::string& group) {
+    const std::string g = "/" + group + "/";
+    const hid_t pk = dset(g + "packets"), rc = dset(g + "received"), pr = dset(g + "prr");
+    const hid_t tx = dset(g + "tx"), rx = dset(g + "rx");
+    Tally too_many, bad_prr, self;
+    if (pk >= 0 && rc >= 0) {
+      const hsize_t rows = dataset_dims(pk, g + "packets")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const hsize_t n = std::min(kBlockRows, rows - s);
+        const auto p = read_u64(pk, g + "packets", s, n), r = read_u64(rc, g + "received", s, n);
+        const auto q = pr >= 0 ? read_f64(pr, g + "prr", s, n) : std::vector<double>();
+        for (hsize_t i = 0; i < n; ++i) {
+          if (r[i] > p[i]) too_many.add(s + i, std::to_string(r[i]) + " received of " + std::to_string(p[i]) + " packets");
+          if (q.empty()) continue;
+          auto detail = [&] {
+            return "prr " + std::to_string(q[i]) + " with " + std::to_string(r[i]) + " of " + std::to_string(p[i]) +
+                   " packets";
+          };
+          if (p[i] == 0) {
+            if (!std::isnan(q[i])) bad_prr.add(s + i, detail());
+          } else if (!(q[i] >= 0 && q[i] <= 1) ||
+                     (r[i] <= p[i] && std::abs(q[i] - static_cast<double>(r[i]) / static_cast<double>(p[i])) > 1e-6)) {
+            bad_prr.add(s + i, detail());
+          }
+        }
+      }
+    }
+    if (tx >= 0 && rx >= 0) {
+      const hsize_t rows = dataset_dims(tx, g + "tx")[0];
+      for (hsize_t s = 0; s < rows; s += kBlockRows) {
+        const hsize_t n = std::min(kBlockRows, rows - s);
+        const auto a = read_u64(tx, g + "tx", s, n), b = read_u64(rx, g + "rx", s, n);
+        for (hsize_t i = 0; i < n; ++i)
+          if (a[i] == b[i]) self.add(s + i, "node " + std::to_string(a[i]));
+      }
+    }
+    too_many.report(problems_, g + "received", "above " + g + "packets");
+    bad_prr.report(problems_, g + "prr", "not received / packets in [0, 1] (NaN when packets = 0)");
+    self.report(problems_, g + "rx", "equal to " + g + "tx");
+  }
+};
+
 // ---------------------------------------------------------------------------
 // dataset_info helpers: readers that throw meshkit::InputError naming the file.
 
@@ -711,6 +822,15 @@ struct InfoReader {
     if (!has_attr(fid.get(), name)) return fallback;
     return guard("attribute " + name, [&] { return read_str_attr(fid.get(), "/", name); });
   }
+  // Every element of a numeric column.
+  std::vector<double> all_f64(const std::string& p) const {
+    Handle d = open(p);
+    return guard(p, [&] { return read_f64(d.get(), p, 0, dataset_dims(d.get(), p).at(0)); });
+  }
+  std::vector<std::uint64_t> all_u64(const std::string& p) const {
+    Handle d = open(p);
+    return guard(p, [&] { return read_u64(d.get(), p, 0, dataset_dims(d.get(), p).at(0)); });
+  }
   template <class T>
   std::optional<T> num_attr(hid_t loc, const std::string& name, hid_t mtype) const {
     if (!has_attr(loc, name)) return std::nullopt;
@@ -727,99 +847,11 @@ std::string human_bytes(double b) {
   return buf;
 }
 
-}  // namespace
-
-namespace {
-
-std::vector<std::string> validate_in_process(const std::string& path) {
-  QuietHdf5 quiet;
-  std::vector<std::string> problems;
-  try {
-    Validator(path, problems).run();
-  } catch (const std::exception& e) {
-    problems.push_back(path + ": " + e.what());
-  }
-  H5Eclear2(H5E_DEFAULT);
-  return problems;
-}
-
-}  // namespace
-
-// HDF5 1.10 does not bounds-check everything it reads: some corrupt files (a
-// damaged global heap behind variable-length strings, for instance) crash the
-// library instead of returning an error. The checks therefore run in a forked
-// child that sends its problems back through a pipe (NUL-separated); a child that
-// dies is reported as one problem naming the file. Without fork (or a pipe) they
-// run in this process.
-std::vector<std::string> validate_dataset(const std::string& path) {
-  int fds[2];
-  if (::pipe(fds) != 0) return validate_in_process(path);
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) {
-    ::close(fds[0]);
-    ::close(fds[1]);
-    return validate_in_process(path);
-  }
-  if (pid == 0) {  // child: validate, send, leave without atexit handlers (HDF5's or the parent's)
-    ::close(fds[0]);
-    std::string out;
-    for (const auto& p : validate_in_process(path)) out.append(p).push_back('\0');
-    std::size_t done = 0;
-    while (done < out.size()) {
-      const ssize_t n = ::write(fds[1], out.data() + done, out.size() - done);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) ::_exit(3);
-      done += static_cast<std::size_t>(n);
-    }
-    ::_exit(0);
-  }
-  ::close(fds[1]);
-  std::string in;
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = ::read(fds[0], buf, sizeof buf);
-    if (n < 0 && errno == EINTR) continue;
-    if (n <= 0) break;
-    in.append(buf, static_cast<std::size_t>(n));
-  }
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  std::vector<std::string> problems;
-  for (std::size_t start = 0; start < in.size();) {
-    const std::size_t end = in.find('\0', start);
-    problems.push_back(in.substr(start, end - start));
-    if (end == std::string::npos) break;
-    start = end + 1;
-  }
-  if (WIFSIGNALED(status))
-    problems.push_back(path + ": corrupt file: reading it crashed the HDF5 library (signal " +
-                       std::to_string(WTERMSIG(status)) + ")");
-  else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    problems.push_back(path + ": validation failed (checker exit status " + std::to_string(WEXITSTATUS(status)) + ")");
-  return problems;
-}
-
-nlohmann::json dataset_info(const std::string& path) {
-  QuietHdf5 quiet;
-  InfoReader r{path, {}};
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw meshkit::InputError(path, "", "not a readable file");
-  if (H5Fis_hdf5(path.c_str()) <= 0) {
-    hdf5_error_text();
-    throw meshkit::InputError(path, "", "not an HDF5 file");
-  }
-  r.fid = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!r.fid.valid()) r.fail("", "cannot open as HDF5 (truncated or corrupt?)");
-
+// Summary of a channel dataset (format checked by the caller).
+nlohmann::json channel_info(const InfoReader& r) {
   nlohmann::json info;
-  info["file"] = path;
-  info["format"] = r.str_attr("format", "");
-  if (info["format"] != kDatasetFormat)
-    throw meshkit::InputError(path, "attribute format", "not a raysweep channel dataset (format \"" +
-                                                             info["format"].get<std::string>() + "\")");
+  info["file"] = r.path;
+  info["format"] = kDatasetFormat;
   info["schema_version"] = r.str_attr("schema_version", "");
   info["raysweep_version"] = r.str_attr("raysweep_version", "");
   info["git_hash"] = r.str_attr("git_hash", "");
@@ -886,13 +918,15 @@ nlohmann::json dataset_info(const std::string& path) {
   }
   info["subcarriers"] = subcarriers;
 
-  const auto bytes = std::filesystem::file_size(path, ec);
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(r.path, ec);
   info["file_bytes"] = ec ? 0 : bytes;
   info["bytes_per_link"] = links && !ec ? static_cast<double>(bytes) / static_cast<double>(links) : 0.0;
   return info;
 }
 
-std::string format_dataset_info(const nlohmann::json& info) {
+
+std::string format_channel_info(const nlohmann::json& info) {
   auto num = [&](const char* k) { return info.value(k, nlohmann::json(0)).get<std::uint64_t>(); };
   auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
   auto text = [&](const char* k) { return info.value(k, std::string()); };
@@ -935,6 +969,246 @@ std::string format_dataset_info(const nlohmann::json& info) {
                 static_cast<unsigned long long>(num("file_bytes")), real("bytes_per_link"));
   o << buf;
   return o.str();
+}
+
+
+// Summary of a SINR outcome file (format checked by the caller).
+nlohmann::json sinr_info(const InfoReader& r) {
+  const hid_t root = r.fid.get();
+  nlohmann::json info;
+  info["file"] = r.path;
+  info["format"] = sinr::kSinrFormat;
+  info["schema_version"] = r.str_attr("schema_version", "");
+  info["raysweep_version"] = r.str_attr("raysweep_version", "");
+  info["git_hash"] = r.str_attr("git_hash", "");
+  info["complete"] = r.num_attr<std::uint64_t>(root, "complete", H5T_NATIVE_UINT64).value_or(0) == 1;
+  info["channel_model"] = r.str_attr("channel_model", "");
+  info["los_from_ray"] = r.num_attr<std::uint64_t>(root, "los_from_ray", H5T_NATIVE_UINT64).value_or(0) != 0;
+  for (const char* k :
+       {"carrier_hz", "sinr_threshold_db", "sensitivity_dbm", "gain_threshold_db", "time_start_s", "time_end_s"})
+    info[k] = r.num_attr<double>(root, k, H5T_NATIVE_DOUBLE).value_or(0.0);
+
+  // The node and PRR tables are written by finish(): absent in an unfinished file.
+  info["nodes"] = r.exists("/nodes/id") ? r.rows("/nodes/id") : 0;
+  info["transmissions"] = r.rows("/transmissions/start_s");
+  info["receptions"] = r.rows("/receptions/decoded");
+  info["interferers"] = r.rows("/interferers/transmission");
+  std::uint64_t decoded = 0;
+  r.scan_u64("/receptions/decoded", [&](const std::vector<std::uint64_t>& v) {
+    for (auto d : v) decoded += d == 1 ? 1 : 0;
+  });
+  info["decoded"] = decoded;
+  info["prr_links"] = r.exists("/prr_links/prr") ? r.rows("/prr_links/prr") : 0;
+
+  nlohmann::json prr = nlohmann::json::object();
+  if (r.exists("/prr_rats/rat")) {
+    const auto rat = r.all_u64("/prr_rats/rat");
+    const auto packets = r.all_u64("/prr_rats/packets");
+    const auto received = r.all_u64("/prr_rats/received");
+    const auto ratio = r.all_f64("/prr_rats/prr");
+    if (packets.size() != rat.size() || received.size() != rat.size() || ratio.size() != rat.size())
+      r.fail("/prr_rats", "datasets of different lengths");
+    const auto& names = sinr_schema().at("codes").at("rat").at("values");
+    for (std::size_t i = 0; i < rat.size(); ++i) {
+      const std::string code = std::to_string(rat[i]);
+      const std::string name = names.contains(code) ? names.at(code).get<std::string>() : "rat " + code;
+      nlohmann::json entry = {{"packets", packets[i]}, {"received", received[i]}};
+      entry["prr"] = std::isnan(ratio[i]) ? nlohmann::json(nullptr) : nlohmann::json(ratio[i]);
+      prr[name] = entry;
+    }
+  }
+  info["prr"] = prr;
+
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(r.path, ec);
+  info["file_bytes"] = ec ? 0 : bytes;
+  return info;
+}
+
+std::string format_sinr_info(const nlohmann::json& info) {
+  auto num = [&](const char* k) { return info.value(k, nlohmann::json(0)).get<std::uint64_t>(); };
+  auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
+  auto text = [&](const char* k) { return info.value(k, std::string()); };
+  std::ostringstream o;
+  char buf[256];
+  o << "file          " << text("file") << (info.value("complete", false) ? "" : "  (INCOMPLETE: writer did not finish)")
+    << "\n";
+  o << "format        " << text("format") << " " << text("schema_version") << ", written by raysweep "
+    << text("raysweep_version") << " (" << text("git_hash") << ")\n";
+  std::snprintf(buf, sizeof buf, "channel       %s%s, carrier %.6g GHz\n", text("channel_model").c_str(),
+                info.value("los_from_ray", false) ? " (LoS class from the traced links)" : "", real("carrier_hz") / 1e9);
+  o << buf;
+  std::snprintf(buf, sizeof buf, "decoding      SINR >= %.6g dB, sensitivity %.6g dBm, inter-RAT gain >= %.6g dB\n",
+                real("sinr_threshold_db"), real("sensitivity_dbm"), real("gain_threshold_db"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "interval      %.3f s .. %.3f s\n", real("time_start_s"), real("time_end_s"));
+  o << buf;
+  o << "nodes         " << num("nodes") << "\n";
+  o << "transmissions " << num("transmissions") << "\n";
+  const std::uint64_t receptions = num("receptions");
+  std::snprintf(buf, sizeof buf, "receptions    %llu (%llu decoded, %.1f %%)\n", static_cast<unsigned long long>(receptions),
+                static_cast<unsigned long long>(num("decoded")),
+                receptions ? 100.0 * static_cast<double>(num("decoded")) / static_cast<double>(receptions) : 0.0);
+  o << buf;
+  o << "interferers   " << num("interferers") << " overlap rows\n";
+  o << "PRR links     " << num("prr_links") << "\n";
+  const auto prr = info.value("prr", nlohmann::json::object());
+  if (prr.empty()) o << "PRR           none\n";
+  bool first = true;
+  for (const auto& [name, e] : prr.items()) {
+    const auto packets = e.value("packets", std::uint64_t{0}), received = e.value("received", std::uint64_t{0});
+    const std::string ratio = e.contains("prr") && e.at("prr").is_number()
+                                  ? (std::snprintf(buf, sizeof buf, "%.4f", e.at("prr").get<double>()), std::string(buf))
+                                  : std::string("n/a");
+    std::snprintf(buf, sizeof buf, "%s%-7s %s (%llu of %llu packets)\n", first ? "PRR           " : "              ",
+                  name.c_str(), ratio.c_str(), static_cast<unsigned long long>(received),
+                  static_cast<unsigned long long>(packets));
+    o << buf;
+    first = false;
+  }
+  std::snprintf(buf, sizeof buf, "size          %s (%llu bytes)\n", human_bytes(static_cast<double>(num("file_bytes"))).c_str(),
+                static_cast<unsigned long long>(num("file_bytes")));
+  o << buf;
+  return o.str();
+}
+
+// Opens the file, reads its format and runs that format's validator.
+void validate_file(const std::string& path, std::vector<std::string>& problems) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) {
+    problems.push_back(path + ": not a readable file");
+    return;
+  }
+  if (H5Fis_hdf5(path.c_str()) <= 0) {
+    hdf5_error_text();
+    problems.push_back(path + ": not an HDF5 file (or unreadable)");
+    return;
+  }
+  Handle fid(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!fid.valid()) {
+    const std::string h5 = hdf5_error_text();
+    problems.push_back(path + ": cannot open as HDF5 (truncated or corrupt?)" + (h5.empty() ? "" : ": " + h5));
+    return;
+  }
+  // Without a known format there is no schema to check against: one problem.
+  if (!has_attr(fid.get(), "format")) {
+    problems.push_back(path + ": attribute format missing: not a raysweep file (expected one of " + known_formats() +
+                       ")");
+    return;
+  }
+  std::string format;
+  try {
+    format = read_str_attr(fid.get(), "/", "format");
+  } catch (const std::exception& e) {
+    problems.push_back(path + ": " + e.what());
+    return;
+  }
+  const nlohmann::json* schema = schema_of(format);
+  if (!schema) {
+    problems.push_back(path + ": unknown format \"" + format + "\" (this program reads " + known_formats() + ")");
+    return;
+  }
+  if (format == kDatasetFormat)
+    ChannelValidator(path, std::move(fid), *schema, problems).run();
+  else
+    SinrValidator(path, std::move(fid), *schema, problems).run();
+}
+
+std::vector<std::string> validate_in_process(const std::string& path) {
+  QuietHdf5 quiet;
+  std::vector<std::string> problems;
+  try {
+    validate_file(path, problems);
+  } catch (const std::exception& e) {
+    problems.push_back(path + ": " + e.what());
+  }
+  H5Eclear2(H5E_DEFAULT);
+  return problems;
+}
+
+}  // namespace
+
+
+// HDF5 1.10 does not bounds-check everything it reads: some corrupt files (a
+// damaged global heap behind variable-length strings, for instance) crash the
+// library instead of returning an error. The checks therefore run in a forked
+// child that sends its problems back through a pipe (NUL-separated); a child that
+// dies is reported as one problem naming the file. Without fork (or a pipe) they
+// run in this process.
+std::vector<std::string> validate_dataset(const std::string& path) {
+  int fds[2];
+  if (::pipe(fds) != 0) return validate_in_process(path);
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) {
+    ::close(fds[0]);
+    ::close(fds[1]);
+    return validate_in_process(path);
+  }
+  if (pid == 0) {  // child: validate, send, leave without atexit handlers (HDF5's or the parent's)
+    ::close(fds[0]);
+    std::string out;
+    for (const auto& p : validate_in_process(path)) out.append(p).push_back('\0');
+    std::size_t done = 0;
+    while (done < out.size()) {
+      const ssize_t n = ::write(fds[1], out.data() + done, out.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) ::_exit(3);
+      done += static_cast<std::size_t>(n);
+    }
+    ::_exit(0);
+  }
+  ::close(fds[1]);
+  std::string in;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    in.append(buf, static_cast<std::size_t>(n));
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  std::vector<std::string> problems;
+  for (std::size_t start = 0; start < in.size();) {
+    const std::size_t end = in.find('\0', start);
+    problems.push_back(in.substr(start, end - start));
+    if (end == std::string::npos) break;
+    start = end + 1;
+  }
+  if (WIFSIGNALED(status))
+    problems.push_back(path + ": corrupt file: reading it crashed the HDF5 library (signal " +
+                       std::to_string(WTERMSIG(status)) + ")");
+  else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    problems.push_back(path + ": validation failed (checker exit status " + std::to_string(WEXITSTATUS(status)) + ")");
+  return problems;
+}
+
+
+nlohmann::json dataset_info(const std::string& path) {
+  QuietHdf5 quiet;
+  InfoReader r{path, {}};
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw meshkit::InputError(path, "", "not a readable file");
+  if (H5Fis_hdf5(path.c_str()) <= 0) {
+    hdf5_error_text();
+    throw meshkit::InputError(path, "", "not an HDF5 file");
+  }
+  r.fid = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!r.fid.valid()) r.fail("", "cannot open as HDF5 (truncated or corrupt?)");
+
+  const std::string format = r.str_attr("format", "");
+  if (format == kDatasetFormat) return channel_info(r);
+  if (format == sinr::kSinrFormat) return sinr_info(r);
+  throw meshkit::InputError(path, "attribute format",
+                            "not a raysweep file (format \"" + format + "\"; this program reads " + known_formats() + ")");
+}
+
+std::string format_dataset_info(const nlohmann::json& info) {
+  if (info.value("format", std::string()) == sinr::kSinrFormat) return format_sinr_info(info);
+  return format_channel_info(info);
 }
 
 }  // namespace raysweep::generators

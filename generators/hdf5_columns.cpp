@@ -1,0 +1,435 @@
+// Schema-driven HDF5 columns (see hdf5_columns.hpp). The sequence of HDF5 calls
+// made for a given sequence of requests is fixed, which together with disabled
+// object time stamps is what makes the files byte-identical for identical input:
+// keep it that way when changing anything here.
+#include "generators/hdf5_columns.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cstdio>
+
+namespace raysweep::generators::hdf5 {
+
+// ---------------------------------------------------------------------------
+// Writing.
+
+void write_fail(const std::string& file, const std::string& object, const std::string& what) {
+  std::string msg = "HDF5 " + file + ": " + object + ": " + what;
+  const std::string h5 = hdf5_error_text();
+  if (!h5.empty()) msg += " (" + h5 + ")";
+  throw std::runtime_error(msg);
+}
+
+Dtype parse_dtype(const std::string& s) {
+  static const std::unordered_map<std::string, Dtype> m = {{"u8", Dtype::u8},   {"u16", Dtype::u16},
+                                                           {"u32", Dtype::u32}, {"u64", Dtype::u64},
+                                                           {"f32", Dtype::f32}, {"f64", Dtype::f64},
+                                                           {"c64", Dtype::c64}, {"str", Dtype::str}};
+  auto it = m.find(s);
+  if (it == m.end()) throw std::logic_error("schema: unknown dtype " + s);
+  return it->second;
+}
+
+std::size_t dtype_bytes(Dtype t) {
+  switch (t) {
+    case Dtype::u8: return 1;
+    case Dtype::u16: return 2;
+    case Dtype::u32: return 4;
+    case Dtype::u64: return 8;
+    case Dtype::f32: return 4;
+    case Dtype::f64: return 8;
+    case Dtype::c64: return 8;
+    case Dtype::str: return sizeof(const char*);
+  }
+  return 0;
+}
+
+Types::Types(const std::string& file) {
+  c64_mem_ = Handle(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
+  if (c64_mem_.get() < 0 || H5Tinsert(c64_mem_.get(), "r", 0, H5T_NATIVE_FLOAT) < 0 ||
+      H5Tinsert(c64_mem_.get(), "i", sizeof(float), H5T_NATIVE_FLOAT) < 0)
+    write_fail(file, "complex memory type", "cannot create");
+  c64_file_ = Handle(H5Tcreate(H5T_COMPOUND, 8), H5Tclose);
+  if (c64_file_.get() < 0 || H5Tinsert(c64_file_.get(), "r", 0, H5T_IEEE_F32LE) < 0 ||
+      H5Tinsert(c64_file_.get(), "i", 4, H5T_IEEE_F32LE) < 0)
+    write_fail(file, "complex file type", "cannot create");
+  str_ = Handle(H5Tcopy(H5T_C_S1), H5Tclose);
+  if (str_.get() < 0 || H5Tset_size(str_.get(), H5T_VARIABLE) < 0 || H5Tset_cset(str_.get(), H5T_CSET_UTF8) < 0)
+    write_fail(file, "string type", "cannot create");
+}
+
+hid_t Types::mem(Dtype t) const {
+  switch (t) {
+    case Dtype::u8: return H5T_NATIVE_UINT8;
+    case Dtype::u16: return H5T_NATIVE_UINT16;
+    case Dtype::u32: return H5T_NATIVE_UINT32;
+    case Dtype::u64: return H5T_NATIVE_UINT64;
+    case Dtype::f32: return H5T_NATIVE_FLOAT;
+    case Dtype::f64: return H5T_NATIVE_DOUBLE;
+    case Dtype::c64: return c64_mem_.get();
+    case Dtype::str: return str_.get();
+  }
+  return H5I_INVALID_HID;
+}
+
+hid_t Types::file(Dtype t) const {
+  switch (t) {
+    case Dtype::u8: return H5T_STD_U8LE;
+    case Dtype::u16: return H5T_STD_U16LE;
+    case Dtype::u32: return H5T_STD_U32LE;
+    case Dtype::u64: return H5T_STD_U64LE;
+    case Dtype::f32: return H5T_IEEE_F32LE;
+    case Dtype::f64: return H5T_IEEE_F64LE;
+    case Dtype::c64: return c64_file_.get();
+    case Dtype::str: return str_.get();
+  }
+  return H5I_INVALID_HID;
+}
+
+void write_attr(const std::string& file, hid_t loc, const std::string& where, const std::string& name, hid_t ftype,
+                hid_t mtype, const void* value) {
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (space.get() < 0) write_fail(file, where + " attribute " + name, "cannot create dataspace");
+  Handle attr(H5Acreate2(loc, name.c_str(), ftype, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (attr.get() < 0) write_fail(file, where + " attribute " + name, "cannot create");
+  if (H5Awrite(attr.get(), mtype, value) < 0) write_fail(file, where + " attribute " + name, "cannot write");
+  if (attr.close() < 0) write_fail(file, where + " attribute " + name, "cannot close");
+}
+
+void write_str_attr(const std::string& file, const Types& types, hid_t loc, const std::string& where,
+                    const std::string& name, const std::string& value) {
+  const char* p = value.c_str();
+  write_attr(file, loc, where, name, types.str(), types.str(), &p);
+}
+
+constexpr std::size_t kFlushBytes = std::size_t{1} << 20;  // write when a buffer holds about this much
+
+void Column::flush(const std::string& file, bool all) {
+  hsize_t rows = buffered_rows();
+  if (!all) rows = rows / chunk_rows * chunk_rows;
+  if (rows == 0) return;
+  const hsize_t new_dims[2] = {rows_written + rows, width};
+  if (H5Dset_extent(dset.get(), new_dims) < 0) write_fail(file, name, "cannot extend dataset");
+  Handle fspace(H5Dget_space(dset.get()), H5Sclose);
+  if (fspace.get() < 0) write_fail(file, name, "cannot get dataspace");
+  const hsize_t start[2] = {rows_written, 0};
+  const hsize_t count[2] = {rows, width};
+  if (H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, start, nullptr, count, nullptr) < 0)
+    write_fail(file, name, "cannot select rows");
+  Handle mspace(H5Screate_simple(rank, count, nullptr), H5Sclose);
+  if (mspace.get() < 0) write_fail(file, name, "cannot create memory dataspace");
+  if (H5Dwrite(dset.get(), mem_type, mspace.get(), fspace.get(), H5P_DEFAULT, buf.data()) < 0)
+    write_fail(file, name, "cannot write rows");
+  const std::size_t bytes = static_cast<std::size_t>(rows) * row_bytes();
+  buf.erase(buf.begin(), buf.begin() + static_cast<std::ptrdiff_t>(bytes));
+  rows_written += rows;
+}
+
+void Column::maybe_flush(const std::string& file) {
+  if (buf.size() >= kFlushBytes && buffered_rows() >= chunk_rows) flush(file, false);
+}
+
+const nlohmann::json& schema_group(const nlohmann::json& schema, const std::string& group) {
+  for (const auto& g : schema.at("groups"))
+    if (g.at("name") == group) return g;
+  throw std::logic_error(schema.value("format", std::string("schema")) + " schema: no group " + group);
+}
+
+const nlohmann::json& schema_dataset(const nlohmann::json& schema, const std::string& group, const std::string& name) {
+  for (const auto& d : schema_group(schema, group).at("datasets"))
+    if (d.at("name") == name) return d;
+  throw std::logic_error(schema.value("format", std::string("schema")) + " schema: no dataset /" + group + "/" + name);
+}
+
+ColumnFile::ColumnFile(std::string file, const nlohmann::json& schema, std::map<std::string, hsize_t> fixed_dims)
+    : file_(std::move(file)), schema_(schema), fixed_dims_(std::move(fixed_dims)), types_(file_) {}
+
+void ColumnFile::create() {
+  Handle fcpl(H5Pcreate(H5P_FILE_CREATE), H5Pclose);
+  // The root group has no time stamps either (file creation lists are group creation lists).
+  if (fcpl.get() < 0 || H5Pset_obj_track_times(fcpl.get(), 0) < 0) write_fail(file_, "/", "cannot set file properties");
+  fid_ = Handle(H5Fcreate(file_.c_str(), H5F_ACC_TRUNC, fcpl.get(), H5P_DEFAULT), H5Fclose);
+  if (fid_.get() < 0) write_fail(file_, "/", "cannot create file");
+}
+
+hid_t ColumnFile::group(const std::string& name) {
+  auto it = groups_.find(name);
+  if (it != groups_.end()) return it->second.get();
+  Handle gcpl(H5Pcreate(H5P_GROUP_CREATE), H5Pclose);
+  if (gcpl.get() < 0 || H5Pset_obj_track_times(gcpl.get(), 0) < 0)
+    write_fail(file_, "/" + name, "cannot set group properties");
+  Handle g(H5Gcreate2(fid_.get(), ("/" + name).c_str(), H5P_DEFAULT, gcpl.get(), H5P_DEFAULT), H5Gclose);
+  if (g.get() < 0) write_fail(file_, "/" + name, "cannot create group");
+  const hid_t id = g.get();
+  groups_.emplace(name, std::move(g));
+  return id;
+}
+
+const nlohmann::json& ColumnFile::attr_spec(const std::string& group, const std::string& name, const char* dtype) const {
+  const auto& list = group.empty() ? schema_.at("attributes") : schema_group(schema_, group).at("attributes");
+  for (const auto& a : list) {
+    if (a.at("name") != name) continue;
+    if (a.at("dtype") != dtype)
+      throw std::logic_error("schema: attribute " + group + "@" + name + " is " + a.at("dtype").get<std::string>() +
+                             ", the writer writes " + dtype);
+    return a;
+  }
+  throw std::logic_error("schema: no attribute " + group + "@" + name);
+}
+
+void ColumnFile::attr(const std::string& group, const std::string& name, const std::string& value) {
+  attr_spec(group, name, "str");
+  const hid_t loc = group.empty() ? fid_.get() : this->group(group);
+  write_str_attr(file_, types_, loc, group.empty() ? "/" : "/" + group, name, value);
+}
+
+void ColumnFile::attr(const std::string& group, const std::string& name, std::uint8_t value) {
+  attr_spec(group, name, "u8");
+  const hid_t loc = group.empty() ? fid_.get() : this->group(group);
+  write_attr(file_, loc, group.empty() ? "/" : "/" + group, name, H5T_STD_U8LE, H5T_NATIVE_UINT8, &value);
+}
+
+void ColumnFile::attr(const std::string& group, const std::string& name, std::uint32_t value) {
+  attr_spec(group, name, "u32");
+  const hid_t loc = group.empty() ? fid_.get() : this->group(group);
+  write_attr(file_, loc, group.empty() ? "/" : "/" + group, name, H5T_STD_U32LE, H5T_NATIVE_UINT32, &value);
+}
+
+void ColumnFile::attr(const std::string& group, const std::string& name, std::uint64_t value) {
+  attr_spec(group, name, "u64");
+  const hid_t loc = group.empty() ? fid_.get() : this->group(group);
+  write_attr(file_, loc, group.empty() ? "/" : "/" + group, name, H5T_STD_U64LE, H5T_NATIVE_UINT64, &value);
+}
+
+void ColumnFile::attr(const std::string& group, const std::string& name, double value) {
+  attr_spec(group, name, "f64");
+  const hid_t loc = group.empty() ? fid_.get() : this->group(group);
+  write_attr(file_, loc, group.empty() ? "/" : "/" + group, name, H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, &value);
+}
+
+void ColumnFile::dataset_attrs(hid_t dset, const std::string& where, const nlohmann::json& spec) {
+  write_str_attr(file_, types_, dset, where, "units", spec.at("units").get<std::string>());
+  write_str_attr(file_, types_, dset, where, "description", spec.at("description").get<std::string>());
+}
+
+// A number, or a symbol given in fixed_dims; other symbols are the growing first axis.
+hsize_t ColumnFile::fixed_dim(const nlohmann::json& d) const {
+  if (d.is_number_unsigned()) return d.get<hsize_t>();
+  if (d.is_string()) {
+    auto it = fixed_dims_.find(d.get<std::string>());
+    if (it != fixed_dims_.end()) return it->second;
+  }
+  throw std::logic_error("schema: unexpected dimension " + d.dump());
+}
+
+Column* ColumnFile::column(const std::string& group_name, const std::string& name, Dtype expect) {
+  const auto& spec = schema_dataset(schema_, group_name, name);
+  auto c = std::make_unique<Column>();
+  c->name = "/" + group_name + "/" + name;
+  c->dtype = parse_dtype(spec.at("dtype").get<std::string>());
+  if (c->dtype != expect) throw std::logic_error("schema: " + c->name + " dtype differs from the writer's");
+  c->mem_type = types_.mem(c->dtype);
+  const auto& shape = spec.at("shape");
+  const auto& chunk = spec.at("chunk");
+  if (!chunk.is_array() || shape.empty() || shape.size() > 2)
+    throw std::logic_error("schema: " + c->name + " is not a chunked column of rank 1 or 2");
+  c->rank = static_cast<int>(shape.size());
+  if (c->rank == 2) c->width = fixed_dim(shape[1]);
+  c->chunk_rows = chunk[0].get<hsize_t>();
+  const hsize_t dims[2] = {0, c->width};
+  const hsize_t maxdims[2] = {H5S_UNLIMITED, c->width};
+  const hsize_t chunk_dims[2] = {c->chunk_rows, std::max<hsize_t>(1, c->width)};
+  Handle space(H5Screate_simple(c->rank, dims, maxdims), H5Sclose);
+  if (space.get() < 0) write_fail(file_, c->name, "cannot create dataspace");
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (dcpl.get() < 0 || H5Pset_chunk(dcpl.get(), c->rank, chunk_dims) < 0 || H5Pset_shuffle(dcpl.get()) < 0 ||
+      H5Pset_deflate(dcpl.get(), 4) < 0 || H5Pset_obj_track_times(dcpl.get(), 0) < 0 ||
+      H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0)
+    write_fail(file_, c->name, "cannot set dataset creation properties");
+  c->dset = Handle(H5Dcreate2(group(group_name), name.c_str(), types_.file(c->dtype), space.get(), H5P_DEFAULT,
+                              dcpl.get(), H5P_DEFAULT),
+                   H5Dclose);
+  if (c->dset.get() < 0) write_fail(file_, c->name, "cannot create dataset");
+  dataset_attrs(c->dset.get(), c->name, spec);
+  columns_.push_back(std::move(c));
+  return columns_.back().get();
+}
+
+void ColumnFile::table(const std::string& group_name, const std::string& name, Dtype expect, hsize_t rows,
+                       const void* data) {
+  const auto& spec = schema_dataset(schema_, group_name, name);
+  const std::string where = "/" + group_name + "/" + name;
+  const Dtype dtype = parse_dtype(spec.at("dtype").get<std::string>());
+  if (dtype != expect) throw std::logic_error("schema: " + where + " dtype differs from the writer's");
+  const auto& shape = spec.at("shape");
+  const int rank = static_cast<int>(shape.size());
+  if (rank < 1 || rank > 2) throw std::logic_error("schema: " + where + " is not of rank 1 or 2");
+  const hsize_t dims[2] = {rows, rank == 2 ? fixed_dim(shape[1]) : 1};
+  Handle space(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+  if (space.get() < 0) write_fail(file_, where, "cannot create dataspace");
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (dcpl.get() < 0 || H5Pset_obj_track_times(dcpl.get(), 0) < 0) write_fail(file_, where, "cannot set properties");
+  Handle dset(H5Dcreate2(group(group_name), name.c_str(), types_.file(dtype), space.get(), H5P_DEFAULT, dcpl.get(),
+                         H5P_DEFAULT),
+              H5Dclose);
+  if (dset.get() < 0) write_fail(file_, where, "cannot create dataset");
+  if (rows > 0 && H5Dwrite(dset.get(), types_.mem(dtype), H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0)
+    write_fail(file_, where, "cannot write");
+  dataset_attrs(dset.get(), where, spec);
+  if (dset.close() < 0) write_fail(file_, where, "cannot close dataset");
+}
+
+void ColumnFile::maybe_flush() {
+  for (auto& c : columns_) c->maybe_flush(file_);
+}
+
+void ColumnFile::flush_all() {
+  for (auto& c : columns_) c->flush(file_, true);
+}
+
+void ColumnFile::close_all(bool mark_complete) {
+  for (auto& c : columns_)
+    if (c->dset.close() < 0) write_fail(file_, c->name, "cannot close dataset");
+  columns_.clear();
+  for (auto& [name, g] : groups_)
+    if (g.close() < 0) write_fail(file_, "/" + name, "cannot close group");
+  groups_.clear();
+  if (mark_complete) {
+    const std::uint8_t one = 1;
+    write_attr(file_, fid_.get(), "/", "complete", H5T_STD_U8LE, H5T_NATIVE_UINT8, &one);
+  }
+  if (fid_.get() >= 0 && fid_.close() < 0) write_fail(file_, "/", "cannot close file");
+}
+
+// ---------------------------------------------------------------------------
+// Reading.
+
+void read_fail(const std::string& object, const std::string& what) {
+  std::string msg = object + ": " + what;
+  const std::string h5 = hdf5_error_text();
+  if (!h5.empty()) msg += " (" + h5 + ")";
+  throw ReadError(msg);
+}
+
+std::string type_mismatch(hid_t type, const std::string& dtype) {
+  const H5T_class_t cls = H5Tget_class(type);
+  const std::size_t size = H5Tget_size(type);
+  auto describe = [&]() -> std::string {
+    switch (cls) {
+      case H5T_INTEGER:
+        return (H5Tget_sign(type) == H5T_SGN_NONE ? "unsigned " : "signed ") + std::to_string(8 * size) + "-bit integer";
+      case H5T_FLOAT: return std::to_string(8 * size) + "-bit float";
+      case H5T_STRING:
+        return H5Tis_variable_str(type) > 0 ? "variable-length string" : std::to_string(size) + "-byte fixed string";
+      case H5T_COMPOUND: return "compound of " + std::to_string(H5Tget_nmembers(type)) + " members";
+      default: return "type class " + std::to_string(static_cast<int>(cls));
+    }
+  };
+  bool ok = false;
+  if (dtype.size() >= 2 && dtype[0] == 'u' && std::isdigit(static_cast<unsigned char>(dtype[1]))) {
+    ok = cls == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_NONE && 8 * size == std::stoul(dtype.substr(1));
+  } else if (dtype == "f32" || dtype == "f64") {
+    ok = cls == H5T_FLOAT && 8 * size == std::stoul(dtype.substr(1));
+  } else if (dtype == "str") {
+    ok = cls == H5T_STRING && H5Tis_variable_str(type) > 0;
+  } else if (dtype == "c64") {
+    ok = cls == H5T_COMPOUND && size == 8 && H5Tget_nmembers(type) == 2;
+    for (unsigned m = 0; ok && m < 2; ++m) {
+      char* name = H5Tget_member_name(type, m);
+      const std::string expect = m == 0 ? "r" : "i";
+      ok = name && expect == name && H5Tget_member_offset(type, m) == 4 * m;
+      if (name) H5free_memory(name);
+      Handle mt(H5Tget_member_type(type, m), H5Tclose);
+      ok = ok && mt.valid() && H5Tget_class(mt.get()) == H5T_FLOAT && H5Tget_size(mt.get()) == 4;
+    }
+    if (cls == H5T_COMPOUND && !ok) return "compound other than {r: f32, i: f32}";
+  }
+  return ok ? std::string() : describe();
+}
+
+bool has_link(hid_t loc, const std::string& name) {
+  const htri_t r = H5Lexists(loc, name.c_str(), H5P_DEFAULT);
+  H5Eclear2(H5E_DEFAULT);
+  return r > 0;
+}
+
+bool has_attr(hid_t loc, const std::string& name) {
+  const htri_t r = H5Aexists(loc, name.c_str());
+  H5Eclear2(H5E_DEFAULT);
+  return r > 0;
+}
+
+std::string read_str_attr(hid_t loc, const std::string& where, const std::string& name) {
+  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
+  if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
+  Handle ftype(H5Aget_type(attr.get()), H5Tclose);
+  if (!ftype.valid()) read_fail(where + "attribute " + name, "cannot get type");
+  if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(where + "attribute " + name, "not a string");
+  Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+  if (H5Tis_variable_str(ftype.get()) > 0) {
+    if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
+        H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
+      read_fail(where + "attribute " + name, "cannot make string type");
+    char* p = nullptr;
+    if (H5Aread(attr.get(), mtype.get(), &p) < 0) read_fail(where + "attribute " + name, "cannot read");
+    std::string s = p ? p : "";
+    if (p) H5free_memory(p);
+    return s;
+  }
+  const std::size_t size = H5Tget_size(ftype.get());
+  std::string s(size + 1, '\0');
+  if (!mtype.valid() || H5Tset_size(mtype.get(), size + 1) < 0 || H5Aread(attr.get(), mtype.get(), s.data()) < 0)
+    read_fail(where + "attribute " + name, "cannot read");
+  s.resize(std::strlen(s.c_str()));
+  return s;
+}
+
+std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name) {
+  Handle space(H5Dget_space(dset), H5Sclose);
+  if (!space.valid()) read_fail(name, "cannot get dataspace");
+  const int rank = H5Sget_simple_extent_ndims(space.get());
+  if (rank < 0) read_fail(name, "cannot get rank");
+  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
+  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) read_fail(name, "cannot get shape");
+  return dims;
+}
+
+std::vector<std::uint64_t> read_u64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
+  return read_rows<std::uint64_t>(dset, name, H5T_NATIVE_UINT64, start, rows);
+}
+
+std::vector<double> read_f64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
+  return read_rows<double>(dset, name, H5T_NATIVE_DOUBLE, start, rows);
+}
+
+std::vector<std::string> read_strings(hid_t dset, const std::string& name) {
+  Handle ftype(H5Dget_type(dset), H5Tclose);
+  if (!ftype.valid()) read_fail(name, "cannot get type");
+  if (H5Tget_class(ftype.get()) != H5T_STRING || H5Tis_variable_str(ftype.get()) <= 0)
+    read_fail(name, "not a variable-length string dataset");
+  Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
+  if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
+      H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
+    read_fail(name, "cannot make string type");
+  const auto dims = dataset_dims(dset, name);
+  if (dims.size() != 1) read_fail(name, "not one-dimensional");
+  std::vector<char*> ptrs(static_cast<std::size_t>(dims[0]), nullptr);
+  std::vector<std::string> out;
+  if (ptrs.empty()) return out;
+  Handle space(H5Dget_space(dset), H5Sclose);
+  if (!space.valid() || H5Dread(dset, mtype.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
+    read_fail(name, "cannot read");
+  out.reserve(ptrs.size());
+  for (char* p : ptrs) out.emplace_back(p ? p : "");
+  H5Dvlen_reclaim(mtype.get(), space.get(), H5P_DEFAULT, ptrs.data());
+  return out;
+}
+
+std::optional<int> major_version(const std::string& v) {
+  int major = 0, minor = 0, patch = 0;
+  char tail = 0;
+  if (std::sscanf(v.c_str(), "%d.%d.%d%c", &major, &minor, &patch, &tail) != 3 || major < 0) return std::nullopt;
+  return major;
+}
+
+}  // namespace raysweep::generators::hdf5
