@@ -12,6 +12,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/toml_fields.hpp"
@@ -154,6 +155,8 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   load_vehicles_config(args.city);
   load_trace_config(args.city);
   load_sweep_config(args.city);
+  const SinrSettings sinr = load_sinr_settings(args.city);
+  const int stages = sinr.present && sinr.enabled ? 5 : 4;
   if (city.fcd.empty()) load_traffic_args(args.city, city, "");
   const Stamps stamps(out / ".stamps");
   const std::string version = std::string(kVersion) + "+" + kGitHash;
@@ -165,9 +168,9 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const std::string scene_key = sha256_text(version + tables_text(root, {"scene"}) + file_hash(city.osm) +
                                             file_hash(city.net) + file_hash(city.mitsuba));
   if (!args.force && stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
-    spdlog::info("[1/4] scene: up to date ({})", scene_dir.string());
+    spdlog::info("[1/{}] scene: up to date ({})", stages, scene_dir.string());
   } else {
-    spdlog::info("[1/4] scene: building {}", scene_dir.string());
+    spdlog::info("[1/{}] scene: building {}", stages, scene_dir.string());
     SceneArgs s;
     if (city.mitsuba.empty()) {
       s.osm = city.osm;
@@ -185,9 +188,9 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const fs::path vehicles_dir = out / "vehicles";
   const std::string vehicles_key = sha256_text(version + tables_text(root, {"vehicles"}));
   if (!args.force && stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
-    spdlog::info("[2/4] vehicles: up to date ({})", vehicles_dir.string());
+    spdlog::info("[2/{}] vehicles: up to date ({})", stages, vehicles_dir.string());
   } else {
-    spdlog::info("[2/4] vehicles: building {}", vehicles_dir.string());
+    spdlog::info("[2/{}] vehicles: building {}", stages, vehicles_dir.string());
     VehiclesArgs v;
     v.out = vehicles_dir.string();
     v.config = args.city;
@@ -201,15 +204,15 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   std::vector<std::string> vtype_files;
   double eta_end = -1;
   if (!fcd.empty()) {
-    spdlog::info("[3/4] traffic: using the FCD trace {}", fcd);
+    spdlog::info("[3/{}] traffic: using the FCD trace {}", stages, fcd);
   } else {
     const TrafficArgs t = load_traffic_args(args.city, city, traffic_dir.string());
     const std::string traffic_key =
         sha256_text(version + tables_text(root, {"traffic"}) + file_hash(city.net) + file_hash(city.sumocfg));
     if (!args.force && stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
-      spdlog::info("[3/4] traffic: up to date ({})", traffic_dir.string());
+      spdlog::info("[3/{}] traffic: up to date ({})", stages, traffic_dir.string());
     } else {
-      spdlog::info("[3/4] traffic: running SUMO into {}", traffic_dir.string());
+      spdlog::info("[3/{}] traffic: running SUMO into {}", stages, traffic_dir.string());
       run_traffic_stage(t, argv);
       stamps.mark("traffic", traffic_key);
     }
@@ -232,9 +235,9 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   for (const auto& f : vtype_files) sweep_key += file_hash(f);
   sweep_key = sha256_text(sweep_key);
   if (!args.force && stamps.up_to_date("sweep", sweep_key, dataset)) {
-    spdlog::info("[4/4] sweep: up to date ({})", dataset.string());
+    spdlog::info("[4/{}] sweep: up to date ({})", stages, dataset.string());
   } else {
-    spdlog::info("[4/4] sweep: tracing {} into {}", fcd, dataset.string());
+    spdlog::info("[4/{}] sweep: tracing {} into {}", stages, fcd, dataset.string());
     SweepArgs s;
     s.scene = scene_dir.string();
     s.vehicles = vehicles_dir.string();
@@ -260,9 +263,66 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   }
   summary["dataset"] = dataset.string();
   summary["info"] = generators::dataset_info(dataset.string());
-  const auto problems = generators::validate_dataset(dataset.string());
-  summary["valid"] = problems.empty();
+  auto problems = generators::validate_dataset(dataset.string());
   for (const auto& p : problems) spdlog::error("{}: {}", dataset.string(), p);
+
+  // SINR outcomes and their report, when the city asks for them.
+  if (sinr.present && sinr.enabled) {
+    const fs::path sinr_dir = out / "sinr";
+    const fs::path report_dir = sinr_dir / "report";
+    const std::string sinr_key = sha256_text(version + tables_text(root, {"sinr"}) + file_hash(dataset.string()));
+    // The reference model first; the others reuse its transmissions (shared schedule)
+    // so that their disagreement with it is measured on the same packets.
+    std::vector<std::pair<std::string, SinrArgs>> runs;
+    for (std::size_t i = 0; i < sinr.models.size(); ++i) {
+      SinrArgs a;
+      a.channels = dataset.string();
+      a.config = args.city;
+      a.channel_model = generators::sinr::channel_model_name(sinr.models[i].kind);
+      a.los_from_ray = sinr.models[i].los_from_ray;
+      a.out = (sinr_dir / (sinr.models[i].label() + ".h5")).string();
+      if (i > 0 && sinr.shared_schedule) a.schedule_from = runs.front().second.out;
+      runs.emplace_back(sinr.models[i].label(), a);
+    }
+    if (sinr.isolated_runs)
+      for (const char* only : {"nrv2x-only", "80211p-only"}) {
+        SinrArgs a = runs.front().second;
+        a.rats_enabled = only;
+        a.out = (sinr_dir / (sinr.models.front().label() + "-" + only + ".h5")).string();
+        runs.emplace_back(sinr.models.front().label() + "-" + only, a);
+      }
+    if (!args.force && stamps.up_to_date("sinr", sinr_key, report_dir / "report.md")) {
+      spdlog::info("[5/{}] sinr: up to date ({})", stages, sinr_dir.string());
+    } else {
+      json sinr_summary = json::array();
+      for (std::size_t i = 0; i < runs.size(); ++i) {
+        spdlog::info("[5/{}] sinr: {} ({}/{})", stages, runs[i].first, i + 1, runs.size());
+        sinr_summary.push_back(run_sinr_stage(runs[i].second, argv));
+      }
+      summary["sinr"] = sinr_summary;
+      ReportArgs r;
+      r.out = report_dir.string();
+      std::string labels;
+      for (const auto& [label, a] : runs) {
+        r.sinr.push_back(a.out);
+        labels += (labels.empty() ? "" : ",") + label;
+      }
+      r.labels = labels;
+      run_report_stage(r);
+      stamps.mark("sinr", sinr_key);
+    }
+    json files = json::array();
+    for (const auto& [label, a] : runs) {
+      files.push_back(a.out);
+      for (const auto& p : generators::validate_dataset(a.out)) {
+        spdlog::error("{}: {}", a.out, p);
+        problems.push_back(a.out + ": " + p);
+      }
+    }
+    summary["sinr_files"] = files;
+    summary["sinr_report"] = report_dir.string();
+  }
+  summary["valid"] = problems.empty();
   return summary;
 }
 

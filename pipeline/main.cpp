@@ -15,6 +15,7 @@
 #include "pipeline/city_run.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/traffic_stage.hpp"
@@ -147,6 +148,27 @@ int main(int argc, char** argv) {
   rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
   rc->add_flag("--force", city.force, "run every stage even when up to date");
 
+  raysweep::pipeline::SinrArgs sinr;
+  std::uint64_t sinr_seed = 0;
+  auto* sn = app.add_subcommand("sinr", "SINR outcomes of 802.11p and NR-V2X sharing one channel (HDF5)");
+  sn->add_option("--channels", sinr.channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
+  sn->add_option("--out", sinr.out, "output SINR .h5")->required();
+  sn->add_option("--channel-model", sinr.channel_model, "ray | tr36885 | tr37885-urban | tr37885-highway")
+      ->capture_default_str();
+  sn->add_flag("--los-from-ray", sinr.los_from_ray, "baselines: take the LoS class from the traced link");
+  sn->add_option("--config", sinr.config, "TOML config ([sinr] table)");
+  sn->add_option("--schedule-from", sinr.schedule_from,
+                 "evaluate the transmissions of an earlier SINR file (same packets, another channel model)");
+  sn->add_option("--rats-enabled", sinr.rats_enabled, "both | 80211p-only | nrv2x-only (overrides the config)");
+  auto* sn_seed = sn->add_option("--seed", sinr_seed, "random seed (overrides the config)");
+
+  raysweep::pipeline::ReportArgs report;
+  auto* rp = app.add_subcommand("report", "SINR report: PNGs (SINR densities, PRR vs distance) and a comparison table");
+  rp->add_option("--sinr", report.sinr, "SINR files; the first is the reference of the disagreement ratios")
+      ->required();
+  rp->add_option("--out", report.out, "output folder")->required();
+  rp->add_option("--labels", report.labels, "comma-separated labels (default: the channel models)");
+
   std::string check_file;
   auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
   vd->add_option("file", check_file, "dataset .h5")->required();
@@ -195,6 +217,20 @@ int main(int argc, char** argv) {
       std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"] << " pair-channels ("
                 << summary["traced_links"] << " traced), " << summary["bytes"] << " bytes\n";
     }
+    if (sn->parsed()) {
+      if (sn_seed->count()) sinr.seed = sinr_seed;
+      const auto summary = raysweep::pipeline::run_sinr_stage(sinr, args);
+      std::cout << sinr.out << ": " << summary["transmissions"] << " transmissions, " << summary["receptions"]
+                << " reception attempts (" << summary["decoded"] << " decoded)";
+      for (const auto& [rat, v] : summary["prr"].items())
+        std::cout << ", PRR " << rat << " " << v["prr"].get<double>();
+      std::cout << "\n";
+    }
+    if (rp->parsed()) {
+      const auto r = raysweep::pipeline::run_report_stage(report);
+      std::cout << r["table"].get<std::string>();
+      for (const auto& png : r["pngs"]) std::cout << "picture: " << png.get<std::string>() << "\n";
+    }
     if (rc->parsed()) {
       const auto summary = raysweep::pipeline::run_city(city, args);
       std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n";
@@ -202,6 +238,11 @@ int main(int argc, char** argv) {
       std::cout << raysweep::generators::format_dataset_info(summary["info"])
                 << "read it in Python: PYTHONPATH=python /usr/bin/python3 python/example_dataset.py "
                 << summary["dataset"].get<std::string>() << "\n";
+      if (summary.contains("sinr_report")) {
+        std::cout << "SINR outcomes:";
+        for (const auto& f : summary["sinr_files"]) std::cout << " " << f.get<std::string>();
+        std::cout << "\nSINR report: " << summary["sinr_report"].get<std::string>() << "/report.md (+ PNGs)\n";
+      }
       if (!summary["valid"].get<bool>()) return 1;
     }
     if (vd->parsed()) {
