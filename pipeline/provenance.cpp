@@ -64,4 +64,17 @@ nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>
           {"config", config}};
 }
 
+std::vector<std::string> recorded_command(const std::vector<std::string>& argv) {
+  std::vector<std::string> out;
+  for (std::size_t i = 0; i < argv.size(); ++i) {
+    if (argv[i] == "--resume" || argv[i] == "-q" || argv[i] == "--quiet") continue;
+    if (argv[i] == "--threads" || argv[i] == "-j") {
+      ++i;
+      continue;
+    }
+    out.push_back(argv[i]);
+  }
+  return out;
+}
+
 }  // namespace raysweep::pipeline

@@ -18,6 +18,11 @@ struct InputFile {
   std::string path;
 };
 
+// The command line as provenance records it: without the options that change no
+// number in the output (--resume, -q/--quiet, -j/--threads N), so a resumed run
+// or another thread count gives the same file.
+std::vector<std::string> recorded_command(const std::vector<std::string>& argv);
+
 nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>& inputs,
                           const nlohmann::json& config, const std::vector<std::string>& argv);
 

@@ -284,7 +284,7 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
   std::vector<InputFile> inputs{{"channels", args.channels}};
   if (!args.config.empty()) inputs.push_back({"config", args.config});
   if (!args.schedule_from.empty()) inputs.push_back({"schedule", args.schedule_from});
-  const json prov = provenance("sinr", inputs, config, argv);
+  const json prov = provenance("sinr", inputs, config, recorded_command(argv));
 
   gs::SinrHeader header;
   header.raysweep_version = kVersion;

@@ -160,18 +160,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   json config = settings.to_json();
   config["sweep"] = cfg.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
-  // Reproducible provenance: neither resuming, the thread count nor the log
-  // level changes a single number in the file, so none is recorded.
-  std::vector<std::string> recorded_argv;
-  for (std::size_t i = 0; i < argv.size(); ++i) {
-    if (argv[i] == "--resume" || argv[i] == "-q" || argv[i] == "--quiet") continue;
-    if (argv[i] == "--threads" || argv[i] == "-j") {
-      ++i;
-      continue;
-    }
-    recorded_argv.push_back(argv[i]);
-  }
-  json prov = provenance("sweep", inputs, config, recorded_argv);
+  json prov = provenance("sweep", inputs, config, recorded_command(argv));
   prov["embree"] = tracer::embree_version();
   const std::string run_key = json{{"config", config}, {"inputs", prov["inputs"]}, {"version", kVersion}}.dump();
 

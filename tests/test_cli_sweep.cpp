@@ -189,14 +189,21 @@ TEST(CliSweep, RunSkipsStagesThatAreUpToDate) {
   write_text(dir / "city.toml", "[city]\nname = \"mini\"\nosm = \"" + (demo() / "kirchberg.osm").string() +
                                     "\"\nnet = \"" + (demo() / "kirchberg.net.xml").string() +
                                     "\"\n[traffic]\nseed = 5\nend_s = 30\nperiod_s = 2\n"
+                                    "[sinr]\nactive_vehicles = 6\nmodels = [\"ray\", \"tr37885-urban\"]\n"
                                     "[sweep]\nbegin_s = 25\nend_s = 25.45\n[tracer]\nrays_per_source = 1024\n");
   auto r = run_raysweep("run " + (dir / "city.toml").string() + " --out " + (dir / "out").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("dataset: " + (dir / "out/dataset.h5").string()), std::string::npos) << r.output;
   EXPECT_EQ(run_raysweep("validate " + (dir / "out/dataset.h5").string()).exit_code, 0);
+  // The [sinr] table adds SINR outcomes per model and their report.
+  for (const char* f : {"sinr/ray.h5", "sinr/tr37885-urban.h5"})
+    EXPECT_EQ(run_raysweep("validate " + (dir / "out" / f).string()).exit_code, 0) << f;
+  EXPECT_TRUE(fs::exists(dir / "out/sinr/report/sinr_pdf.png"));
+  EXPECT_TRUE(fs::exists(dir / "out/sinr/report/report.md"));
   r = run_raysweep("run " + (dir / "city.toml").string() + " --out " + (dir / "out").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  for (const char* stage : {"scene: up to date", "vehicles: up to date", "traffic: up to date", "sweep: up to date"})
+  for (const char* stage : {"scene: up to date", "vehicles: up to date", "traffic: up to date", "sweep: up to date",
+                            "sinr: up to date"})
     EXPECT_NE(r.output.find(stage), std::string::npos) << stage << "\n" << r.output;
   // Changing the sweep settings reruns only the sweep.
   write_text(dir / "city.toml", read_text(dir / "city.toml") + "max_depth = 2\n");
@@ -204,6 +211,7 @@ TEST(CliSweep, RunSkipsStagesThatAreUpToDate) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("traffic: up to date"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("sweep: tracing"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sinr: ray"), std::string::npos) << r.output;  // new channels, new outcomes
 }
 
 TEST(CliSweep, CityRecipesLoad) {
