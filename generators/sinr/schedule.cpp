@@ -68,7 +68,7 @@ struct NrGrant {
   int sub_first = 0, sub_count = 0;
   int counter = 0;
   std::vector<int> retx;        // slot offsets of the blind retransmissions after an occasion
-  double last_tx_s = -kInf;
+  double last_tx_s = -kInf, prev_tx_s = -kInf;  // the grant's last two transmissions
   std::int64_t occasion(std::int64_t k, std::int64_t period) const { return first_slot + k * period; }
 };
 
@@ -93,7 +93,8 @@ class NrScheduler {
     }
     NrGrant& g = grants_[m.node];
     Rng& rng = rng_[m.node];
-    const std::int64_t n = static_cast<std::int64_t>(std::floor(m.t / slot_ + 1e-9)) + 1;
+    // n: the slot in which the packet arrives (selection is triggered there).
+    const std::int64_t n = static_cast<std::int64_t>(std::floor(m.t / slot_ + 1e-9));
     const std::int64_t earliest = n + c_.nr_mac.t1_slots;
     if (g.active && need > g.sub_count) g.active = false;  // the packet does not fit: reselect
     // Occasions that passed unused still count down the reservation.
@@ -106,6 +107,7 @@ class NrScheduler {
     ++g.next_index;
     emit(m, packet, slot, 0, g, out);
     for (std::size_t r = 0; r < g.retx.size(); ++r) emit(m, packet, slot + g.retx[r], static_cast<int>(r + 1), g, out);
+    g.prev_tx_s = g.last_tx_s;
     g.last_tx_s = static_cast<double>(slot) * slot_;
     latency_sum_ += static_cast<double>(slot) * slot_ - m.t;
     ++sent_;
@@ -165,6 +167,7 @@ class NrScheduler {
     if (free.empty()) free.resize(excluded.size()), std::iota(free.begin(), free.end(), std::size_t{0});
     const std::size_t pick = free[static_cast<std::size_t>(rng.below(static_cast<int>(free.size())))];
     g.active = true;
+    g.last_tx_s = g.prev_tx_s = -kInf;
     g.first_slot = w0 + static_cast<std::int64_t>(pick) / starts;
     g.next_index = 0;
     g.sub_first = static_cast<int>(pick % static_cast<std::size_t>(starts));
@@ -193,7 +196,9 @@ class NrScheduler {
     const std::size_t f = trace_.frame_at(m.t);
     for (std::uint32_t j = 0; j < grants_.size(); ++j) {
       const NrGrant& o = grants_[j];
-      if (j == m.node || !o.active || o.last_tx_s > m.t || o.last_tx_s < m.t - c_.nr_mac.sensing_window_s) continue;
+      // The SCI of the grant's latest transmission already sent announces the reservation.
+      const double heard_at = o.last_tx_s <= m.t ? o.last_tx_s : o.prev_tx_s;
+      if (j == m.node || !o.active || heard_at < m.t - c_.nr_mac.sensing_window_s) continue;
       if (!trace_.state(f, j) || !trace_.state(f, m.node)) continue;
       const double res = 12.0 * o.sub_count * c_.nr.subchannel_rbs;
       const double rsrp = c_.tx_power_dbm - 10.0 * std::log10(res) + channel_.link(f, j, m.node).gain_db;
@@ -232,8 +237,12 @@ struct Ongoing {
   std::uint32_t node;
   Rat rat;
   double f_lo, f_hi, power_dbm;
-  const float* gains;  // to every node
-  std::size_t key;     // identifies the transmission for removal
+  // Gains to every node: row `offset` of a gain table that may still grow (and
+  // reallocate) while the transmission is on the air, so no raw pointer.
+  const std::vector<float>* table;
+  std::size_t offset;
+  std::size_t key;  // identifies the transmission for removal
+  float gain(std::uint32_t n) const { return (*table)[offset + n]; }
 };
 
 struct WifiNode {
@@ -310,11 +319,22 @@ class WifiSimulator {
           remove_ongoing(e.arg);
           update(e.t);
           break;
-        case Ev::tx_end:
-          state_[e.node].transmitting = false;
+        case Ev::tx_end: {
+          WifiNode& own = state_[e.node];
+          own.transmitting = false;
           remove_ongoing(e.arg);
           update(e.t);
+          // The station's own frame never made its medium busy, so update() sees no
+          // change for it: a message that arrived meanwhile is armed here.
+          if (!own.busy) {
+            own.idle_since = e.t;
+            if (own.pending >= 0) {
+              if (own.backoff < 0) own.backoff = rng_[e.node].below(cw_min_ + 1);
+              arm(e.node, e.t);
+            }
+          }
           break;
+        }
       }
     }
     s.wifi_mean_latency_s = sent ? latency / static_cast<double>(sent) : 0.0;
@@ -382,8 +402,8 @@ class WifiSimulator {
     const bool is_nr = key >> 63;
     const std::size_t i = static_cast<std::size_t>(key & ~(std::uint64_t{1} << 63));
     const Transmission& t = is_nr ? nr[i] : wifi[i];
-    const float* g = (is_nr ? nr_gains.data() : wifi_gains.data()) + i * nodes_;
-    ongoing_.push_back({t.node, t.rat, t.f_lo_hz, t.f_hi_hz, t.power_dbm, g, static_cast<std::size_t>(key)});
+    ongoing_.push_back({t.node, t.rat, t.f_lo_hz, t.f_hi_hz, t.power_dbm, is_nr ? &nr_gains : &wifi_gains,
+                        i * nodes_, static_cast<std::size_t>(key)});
   }
   void remove_ongoing(std::uint64_t key) {
     for (std::size_t i = 0; i < ongoing_.size(); ++i)
@@ -398,7 +418,7 @@ class WifiSimulator {
     double energy = 0;
     for (const auto& o : ongoing_) {
       if (o.node == n) continue;
-      const double prx = o.power_dbm + o.gains[n];
+      const double prx = o.power_dbm + o.gain(n);
       if (o.rat == Rat::wifi80211p && prx >= c_.wifi_mac.cca_signal_dbm) return true;
       energy += mw(prx) * overlap(o.f_lo, o.f_hi, band_lo_, band_hi_) / (o.f_hi - o.f_lo);
     }
