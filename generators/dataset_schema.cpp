@@ -926,16 +926,20 @@ nlohmann::json channel_info(const InfoReader& r) {
 }
 
 
+// The first lines of both formats' summaries: file, completeness, format and writer.
+std::string identity_lines(const nlohmann::json& info) {
+  auto text = [&](const char* k) { return info.value(k, std::string()); };
+  return "file          " + text("file") + (info.value("complete", false) ? "" : "  (INCOMPLETE: writer did not finish)") +
+         "\nformat        " + text("format") + " " + text("schema_version") + ", written by raysweep " +
+         text("raysweep_version") + " (" + text("git_hash") + ")\n";
+}
+
 std::string format_channel_info(const nlohmann::json& info) {
   auto num = [&](const char* k) { return info.value(k, nlohmann::json(0)).get<std::uint64_t>(); };
   auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
-  auto text = [&](const char* k) { return info.value(k, std::string()); };
   std::ostringstream o;
   char buf[256];
-  o << "file          " << text("file") << (info.value("complete", false) ? "" : "  (INCOMPLETE: writer did not finish)")
-    << "\n";
-  o << "format        " << text("format") << " " << text("schema_version") << ", written by raysweep "
-    << text("raysweep_version") << " (" << text("git_hash") << ")\n";
+  o << identity_lines(info);
   std::snprintf(buf, sizeof buf, "frames        %llu (%.3f s .. %.3f s)\n", static_cast<unsigned long long>(num("frames")),
                 real("time_start_s"), real("time_end_s"));
   o << buf;
@@ -1031,10 +1035,7 @@ std::string format_sinr_info(const nlohmann::json& info) {
   auto text = [&](const char* k) { return info.value(k, std::string()); };
   std::ostringstream o;
   char buf[256];
-  o << "file          " << text("file") << (info.value("complete", false) ? "" : "  (INCOMPLETE: writer did not finish)")
-    << "\n";
-  o << "format        " << text("format") << " " << text("schema_version") << ", written by raysweep "
-    << text("raysweep_version") << " (" << text("git_hash") << ")\n";
+  o << identity_lines(info);
   std::snprintf(buf, sizeof buf, "channel       %s%s, carrier %.6g GHz\n", text("channel_model").c_str(),
                 info.value("los_from_ray", false) ? " (LoS class from the traced links)" : "", real("carrier_hz") / 1e9);
   o << buf;

@@ -54,14 +54,8 @@ struct DatasetWriter::Impl {
 
   void create() {
     out.create();
-    out.attr("", "format", std::string(kDatasetFormat));
-    out.attr("", "schema_version", std::string(kDatasetSchemaVersion));
-    out.attr("", "raysweep_version", header.raysweep_version);
-    out.attr("", "git_hash", header.git_hash);
-    out.attr("", "config", header.config.dump());
-    out.attr("", "inputs", header.inputs.dump());
-    out.attr("", "provenance", header.provenance.dump());
-    out.attr("", "seed", std::uint64_t{header.seed});
+    out.identity_attrs(kDatasetFormat, kDatasetSchemaVersion, header.raysweep_version, header.git_hash, header.config, header.inputs,
+                       header.provenance, header.seed);
     out.attr("", "carrier_hz", header.carrier_hz);
     out.attr("", "bandwidth_hz", header.bandwidth_hz);
 

@@ -432,4 +432,18 @@ std::optional<int> major_version(const std::string& v) {
   return major;
 }
 
+void ColumnFile::identity_attrs(const std::string& format, const std::string& schema_version,
+                                const std::string& raysweep_version, const std::string& git_hash,
+                                const nlohmann::json& config, const nlohmann::json& inputs,
+                                const nlohmann::json& provenance, std::uint64_t seed) {
+  attr("", "format", format);
+  attr("", "schema_version", schema_version);
+  attr("", "raysweep_version", raysweep_version);
+  attr("", "git_hash", git_hash);
+  attr("", "config", config.dump());
+  attr("", "inputs", inputs.dump());
+  attr("", "provenance", provenance.dump());
+  attr("", "seed", seed);
+}
+
 }  // namespace raysweep::generators::hdf5

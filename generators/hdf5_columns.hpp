@@ -121,6 +121,11 @@ class ColumnFile {
   void attr(const std::string& group, const std::string& name, std::uint32_t value);
   void attr(const std::string& group, const std::string& name, std::uint64_t value);
   void attr(const std::string& group, const std::string& name, double value);
+  // The root attributes both formats open with: format, schema_version,
+  // raysweep_version, git_hash, config, inputs, provenance (JSON text) and seed.
+  void identity_attrs(const std::string& format, const std::string& schema_version,
+                      const std::string& raysweep_version, const std::string& git_hash, const nlohmann::json& config,
+                      const nlohmann::json& inputs, const nlohmann::json& provenance, std::uint64_t seed);
 
   // An extendible, chunked, compressed dataset from its schema entry; `expect` is
   // the dtype the caller writes (std::logic_error when the schema says otherwise).

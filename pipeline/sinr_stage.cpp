@@ -46,14 +46,6 @@ SinrModel parse_sinr_model(const std::string& s) {
 
 namespace {
 
-std::vector<std::string> strings(const std::string& path, const std::string& key, const toml::node& n) {
-  const toml::array* a = n.as_array();
-  if (!a) throw ConfigError(where(path, key, n) + ": expected an array of strings");
-  std::vector<std::string> out;
-  for (const auto& e : *a) out.push_back(text(path, key, e));
-  return out;
-}
-
 std::vector<std::pair<double, double>> curve(const std::string& path, const std::string& key, const toml::node& n) {
   const toml::array* a = n.as_array();
   if (!a) throw ConfigError(where(path, key, n) + ": expected [[sinr_db, bler], ...]");

@@ -37,14 +37,6 @@ using namespace toml_fields;
 
 namespace {
 
-std::vector<std::string> strings(const std::string& path, const std::string& key, const toml::node& n) {
-  const toml::array* a = n.as_array();
-  if (!a) throw ConfigError(where(path, key, n) + ": expected an array of strings");
-  std::vector<std::string> out;
-  for (const auto& e : *a) out.push_back(text(path, key, e));
-  return out;
-}
-
 std::string block_name(std::uint64_t b) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "block_%06llu", static_cast<unsigned long long>(b));

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 #include "pipeline/config.hpp"
 
@@ -29,6 +30,14 @@ inline bool boolean(const std::string& path, const std::string& key, const toml:
 inline std::string text(const std::string& path, const std::string& key, const toml::node& n) {
   if (auto v = n.value<std::string>()) return *v;
   throw ConfigError(where(path, key, n) + ": expected a string");
+}
+
+inline std::vector<std::string> strings(const std::string& path, const std::string& key, const toml::node& n) {
+  const toml::array* a = n.as_array();
+  if (!a) throw ConfigError(where(path, key, n) + ": expected an array of strings");
+  std::vector<std::string> out;
+  for (const auto& e : *a) out.push_back(text(path, key, e));
+  return out;
 }
 
 }  // namespace raysweep::pipeline::toml_fields

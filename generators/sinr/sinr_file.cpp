@@ -89,14 +89,8 @@ struct SinrWriter::Impl {
   void create() {
     check_header();
     out.create();
-    out.attr("", "format", std::string(kSinrFormat));
-    out.attr("", "schema_version", std::string(kSinrSchemaVersion));
-    out.attr("", "raysweep_version", header.raysweep_version);
-    out.attr("", "git_hash", header.git_hash);
-    out.attr("", "config", header.config.dump());
-    out.attr("", "inputs", header.inputs.dump());
-    out.attr("", "provenance", header.provenance.dump());
-    out.attr("", "seed", std::uint64_t{header.seed});
+    out.identity_attrs(kSinrFormat, kSinrSchemaVersion, header.raysweep_version, header.git_hash, header.config, header.inputs,
+                       header.provenance, header.seed);
     out.attr("", "channel_model", header.channel_model);
     out.attr("", "los_from_ray", flag(header.los_from_ray));
     out.attr("", "carrier_hz", header.carrier_hz);
