@@ -4,12 +4,6 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#if __has_include(<hdf5.h>)
-#include <hdf5.h>
-#else
-#include <hdf5/serial/hdf5.h>  // Debian's serial HDF5 (the test target has no HDF5 include path)
-#endif
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -21,6 +15,7 @@
 #include "generators/dataset_writer.hpp"
 #include "generators/sinr/channel_models.hpp"
 #include "generators/sinr/channel_trace.hpp"
+#include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"
 
@@ -28,6 +23,7 @@ namespace fs = std::filesystem;
 using namespace raysweep::generators;
 using namespace raysweep::generators::sinr;
 using raysweep::meshkit::InputError;
+using raysweep::test::H5;
 using raysweep::test::scratch_dir;
 using Scen = formulas::Tr37885Scenario;
 
@@ -634,14 +630,6 @@ TEST(ChannelTrace, LoadRoundTrip) {
 }
 
 namespace {
-
-struct H5 {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~H5() {
-    if (id >= 0) close(id);
-  }
-};
 
 // The InputError that loading `file` throws ("" when none).
 std::string load_error(const fs::path& file) {

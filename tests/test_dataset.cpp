@@ -3,12 +3,6 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#if __has_include(<hdf5.h>)
-#include <hdf5.h>
-#else
-#include <hdf5/serial/hdf5.h>  // Debian's serial HDF5 (the test target has no HDF5 include path)
-#endif
-
 #include <algorithm>
 #include <bit>
 #include <cmath>
@@ -24,13 +18,24 @@
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_writer.hpp"
 #include "generators/frame_block.hpp"
+#include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace raysweep::generators;
 using raysweep::meshkit::InputError;
+using raysweep::test::H5;
+using raysweep::test::has_attr;
+using raysweep::test::num_attr;
+using raysweep::test::poke_u64;
+using raysweep::test::read_bytes;
+using raysweep::test::read_complex;
+using raysweep::test::read_ds;
+using raysweep::test::read_strings;
 using raysweep::test::run_command;
+using raysweep::test::set_str_attr;
+using raysweep::test::str_attr;
 using raysweep::test::scratch_dir;
 using raysweep::test::source_dir;
 
@@ -164,118 +169,6 @@ void write_test_dataset(const fs::path& file, bool finish = true) {
   DatasetWriter w(file, test_header());
   for (const auto& f : frames) w.append(f);
   if (finish) w.finish(test_nodes(), test_objects());
-}
-
-// ---------------------------------------------------------------------------
-// HDF5 C API helpers for reading back and corrupting files.
-
-struct H5 {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~H5() {
-    if (id >= 0) close(id);
-  }
-};
-
-template <class T>
-std::vector<T> read_ds(const fs::path& file, const std::string& name, hid_t memtype, std::vector<hsize_t>* dims_out = nullptr) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
-  EXPECT_GE(f.id, 0) << file;
-  H5 d{H5Dopen2(f.id, name.c_str(), H5P_DEFAULT), H5Dclose};
-  EXPECT_GE(d.id, 0) << name;
-  H5 s{H5Dget_space(d.id), H5Sclose};
-  std::vector<hsize_t> dims(static_cast<std::size_t>(H5Sget_simple_extent_ndims(s.id)));
-  H5Sget_simple_extent_dims(s.id, dims.data(), nullptr);
-  hsize_t n = 1;
-  for (auto x : dims) n *= x;
-  std::vector<T> out(n);
-  if (n) {
-    EXPECT_GE(H5Dread(d.id, memtype, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), 0) << name;
-  }
-  if (dims_out) *dims_out = dims;
-  return out;
-}
-
-std::vector<std::complex<float>> read_complex(const fs::path& file, const std::string& name,
-                                              std::vector<hsize_t>* dims = nullptr) {
-  H5 t{H5Tcreate(H5T_COMPOUND, sizeof(std::complex<float>)), H5Tclose};
-  H5Tinsert(t.id, "r", 0, H5T_NATIVE_FLOAT);
-  H5Tinsert(t.id, "i", sizeof(float), H5T_NATIVE_FLOAT);
-  return read_ds<std::complex<float>>(file, name, t.id, dims);
-}
-
-std::vector<std::string> read_strings(const fs::path& file, const std::string& name) {
-  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
-  H5Tset_size(t.id, H5T_VARIABLE);
-  H5Tset_cset(t.id, H5T_CSET_UTF8);
-  auto ptrs = read_ds<char*>(file, name, t.id);
-  std::vector<std::string> out;
-  for (char* p : ptrs) {
-    out.emplace_back(p ? p : "");
-    H5free_memory(p);
-  }
-  return out;
-}
-
-std::string str_attr(const fs::path& file, const std::string& obj, const std::string& name) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
-  H5 a{H5Aopen_by_name(f.id, obj.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
-  EXPECT_GE(a.id, 0) << obj << " " << name;
-  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
-  H5Tset_size(t.id, H5T_VARIABLE);
-  H5Tset_cset(t.id, H5T_CSET_UTF8);
-  char* p = nullptr;
-  EXPECT_GE(H5Aread(a.id, t.id, &p), 0);
-  std::string s = p ? p : "";
-  H5free_memory(p);
-  return s;
-}
-
-template <class T>
-T num_attr(const fs::path& file, const std::string& obj, const std::string& name, hid_t memtype) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
-  H5 a{H5Aopen_by_name(f.id, obj.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
-  EXPECT_GE(a.id, 0) << obj << " " << name;
-  T v{};
-  EXPECT_GE(H5Aread(a.id, memtype, &v), 0);
-  return v;
-}
-
-bool has_attr(const fs::path& file, const std::string& name) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
-  return H5Aexists(f.id, name.c_str()) > 0;
-}
-
-// Overwrites element `row` of an integer dataset.
-void poke_u64(const fs::path& file, const std::string& name, hsize_t row, std::uint64_t value) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
-  ASSERT_GE(f.id, 0);
-  H5 d{H5Dopen2(f.id, name.c_str(), H5P_DEFAULT), H5Dclose};
-  ASSERT_GE(d.id, 0);
-  H5 fs_{H5Dget_space(d.id), H5Sclose};
-  const hsize_t count = 1;
-  ASSERT_GE(H5Sselect_hyperslab(fs_.id, H5S_SELECT_SET, &row, nullptr, &count, nullptr), 0);
-  H5 ms{H5Screate_simple(1, &count, nullptr), H5Sclose};
-  ASSERT_GE(H5Dwrite(d.id, H5T_NATIVE_UINT64, ms.id, fs_.id, H5P_DEFAULT, &value), 0);
-}
-
-void set_str_attr(const fs::path& file, const std::string& name, const std::string& value) {
-  H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
-  ASSERT_GE(f.id, 0);
-  ASSERT_GE(H5Adelete(f.id, name.c_str()), 0);
-  H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
-  H5Tset_size(t.id, H5T_VARIABLE);
-  H5Tset_cset(t.id, H5T_CSET_UTF8);
-  H5 s{H5Screate(H5S_SCALAR), H5Sclose};
-  H5 a{H5Acreate2(f.id, name.c_str(), t.id, s.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
-  ASSERT_GE(a.id, 0);
-  const char* p = value.c_str();
-  ASSERT_GE(H5Awrite(a.id, t.id, &p), 0);
-}
-
-std::string read_bytes(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), {});
 }
 
 void write_bytes(const fs::path& p, const std::string& bytes) {
