@@ -252,7 +252,9 @@ int main(int argc, char** argv) {
         std::cout << check_file << ": INVALID (" << problems.size() << " problems)\n";
         return 1;
       }
-      std::cout << check_file << ": valid (schema " << raysweep::generators::kDatasetSchemaVersion << ")\n";
+      const auto info = raysweep::generators::dataset_info(check_file);
+      std::cout << check_file << ": valid (" << info.value("format", std::string()) << " schema "
+                << info.value("schema_version", std::string()) << ")\n";
     }
     if (inf->parsed()) {
       const auto info = raysweep::generators::dataset_info(info_file);
