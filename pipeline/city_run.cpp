@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 #include <toml++/toml.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -291,7 +292,10 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
         a.out = (sinr_dir / (sinr.models.front().label() + "-" + only + ".h5")).string();
         runs.emplace_back(sinr.models.front().label() + "-" + only, a);
       }
-    if (!args.force && stamps.up_to_date("sinr", sinr_key, report_dir / "report.md")) {
+    // Up to date only while every outcome file is there too, not just the report.
+    const bool outcomes_present =
+        std::all_of(runs.begin(), runs.end(), [](const auto& r) { return fs::exists(r.second.out); });
+    if (!args.force && outcomes_present && stamps.up_to_date("sinr", sinr_key, report_dir / "report.md")) {
       spdlog::info("[5/{}] sinr: up to date ({})", stages, sinr_dir.string());
     } else {
       json sinr_summary = json::array();
