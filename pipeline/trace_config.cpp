@@ -22,6 +22,7 @@ TraceSettings load_trace_config(const std::string& path) {
         if (key == "frequency_hz") r.frequency_hz = number(path, full, node);
         else if (key == "bandwidth_hz") r.bandwidth_hz = number(path, full, node);
         else if (key == "tx_power_dbm") r.tx_power_dbm = number(path, full, node);
+        else if (key == "sensitivity_dbm") r.sensitivity_dbm = number(path, full, node);
         else if (key == "antenna") r.antenna.pattern = tracer::parse_antenna_pattern(text(path, full, node));
         else if (key == "polarization") r.antenna.polarization = tracer::parse_polarization(text(path, full, node));
         else throw ConfigError(where(path, full, node) + ": unknown key");
@@ -46,11 +47,11 @@ TraceSettings load_trace_config(const std::string& path) {
         if (v == "sbr") t.candidates = tracer::CandidateSearch::sbr;
         else if (v == "exhaustive") t.candidates = tracer::CandidateSearch::exhaustive;
         else throw ConfigError(where(path, full, node) + ": expected \"sbr\" or \"exhaustive\"");
-      } else if (key == "diffuse" || key == "diffraction") {
-        if (boolean(path, full, node))
-          throw ConfigError(where(path, full, node) + ": not implemented yet (diffuse scattering and diffraction "
-                                                      "arrive with the tracer fidelity work); set it to false");
-      } else {
+      } else if (key == "diffuse") t.diffuse = boolean(path, full, node);
+      else if (key == "diffraction") t.diffraction = boolean(path, full, node);
+      else if (key == "path_threshold_db") t.path_threshold_db = number(path, full, node);
+      else if (key == "range_margin_db") t.range_margin_db = number(path, full, node);
+      else {
         throw ConfigError(where(path, full, node) + ": unknown key");
       }
     }
@@ -68,7 +69,21 @@ TraceSettings load_trace_config(const std::string& path) {
         if (key == "eps_r") o.eps_r = number(path, full, mv);
         else if (key == "sigma") o.sigma = number(path, full, mv);
         else if (key == "thickness_m") o.thickness_m = number(path, full, mv);
-        else throw ConfigError(where(path, full, mv) + ": unknown key (eps_r, sigma, thickness_m)");
+        else if (key == "scattering_coefficient") o.scattering_coefficient = number(path, full, mv);
+        else if (key == "xpd") o.xpd = number(path, full, mv);
+        else if (key == "lambda_r") o.lambda_r = number(path, full, mv);
+        else if (key == "alpha_r") o.alpha_r = integer(path, full, mv);
+        else if (key == "alpha_i") o.alpha_i = integer(path, full, mv);
+        else if (key == "lobe") {
+          try {
+            o.lobe = tracer::parse_scattering_lobe(text(path, full, mv));
+          } catch (const std::invalid_argument& e) {
+            throw ConfigError(where(path, full, mv) + ": " + e.what());
+          }
+        } else
+          throw ConfigError(where(path, full, mv) +
+                            ": unknown key (eps_r, sigma, thickness_m, scattering_coefficient, xpd, lobe, alpha_r, "
+                            "alpha_i, lambda_r)");
       }
       t.materials[*canonical] = o;
     }
@@ -89,12 +104,19 @@ nlohmann::json TraceSettings::to_json() const {
     if (o.eps_r) m["eps_r"] = *o.eps_r;
     if (o.sigma) m["sigma"] = *o.sigma;
     if (o.thickness_m) m["thickness_m"] = *o.thickness_m;
+    if (o.scattering_coefficient) m["scattering_coefficient"] = *o.scattering_coefficient;
+    if (o.xpd) m["xpd"] = *o.xpd;
+    if (o.lobe) m["lobe"] = tracer::scattering_lobe_name(*o.lobe);
+    if (o.alpha_r) m["alpha_r"] = *o.alpha_r;
+    if (o.alpha_i) m["alpha_i"] = *o.alpha_i;
+    if (o.lambda_r) m["lambda_r"] = *o.lambda_r;
     materials[name] = m;
   }
   return {{"radio",
            {{"frequency_hz", radio.frequency_hz},
             {"bandwidth_hz", radio.bandwidth_hz},
             {"tx_power_dbm", radio.tx_power_dbm},
+            {"sensitivity_dbm", radio.sensitivity_dbm},
             {"antenna", patterns[static_cast<int>(radio.antenna.pattern)]},
             {"polarization", radio.antenna.polarization == tracer::Polarization::V ? "V" : "H"}}},
           {"tracer",
@@ -106,7 +128,11 @@ nlohmann::json TraceSettings::to_json() const {
             {"reception_radius_factor", tracer.reception_radius_factor},
             {"candidates", tracer.candidates == tracer::CandidateSearch::sbr ? "sbr" : "exhaustive"},
             {"max_transmissions", tracer.max_transmissions},
-            {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db}}},
+            {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db},
+            {"diffuse", tracer.diffuse},
+            {"diffraction", tracer.diffraction},
+            {"path_threshold_db", tracer.path_threshold_db},
+            {"range_margin_db", tracer.range_margin_db}}},
           {"materials", materials}};
 }
 

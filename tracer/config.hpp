@@ -13,6 +13,10 @@ struct RadioConfig {
   double frequency_hz = 5.9e9;
   double bandwidth_hz = 10e6;
   double tx_power_dbm = 30;  // recorded for the generators; path gains do not depend on it
+  // Weakest power a receiver can use: with tx_power_dbm and the antennas'
+  // peak gains it sets the free-space reach beyond which pairs are labelled
+  // out of range and not traced (TracerConfig::range_margin_db).
+  double sensitivity_dbm = -93;
   AntennaSpec antenna;       // the same pattern at every node (vertical isotropic by default)
 };
 
@@ -42,8 +46,27 @@ struct TracerConfig {
   // about 40 dB at 5.9 GHz; such paths stay below the ones found in front).
   // A huge value makes the search space equal the exhaustive one.
   double sbr_transmission_loss_db = 20;
+  // Diffuse scattering (effective roughness model) from the hits of the
+  // shoot-and-bounce rays, on materials with a scattering coefficient > 0.
+  // When on, specular reflections on those materials keep sqrt(1 - S^2) of
+  // their field (the R^2 + S^2 = 1 energy partition).
+  bool diffuse = false;
+  // First-order UTD edge diffraction on the static scene's wedges
+  // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
+  bool diffraction = false;
+  // A pair's paths weaker than its strongest by more than this (dB) are
+  // dropped and counted in PairResult::dropped_threshold. <= 0: keep all.
+  double path_threshold_db = 60;
+  // Pairs farther apart than the free-space reach of the sensitivity plus
+  // this margin (dB: constructive ground reflection adds up to 6 dB) are
+  // labelled out of range and not traced. A huge value traces every pair.
+  double range_margin_db = 6;
   std::map<std::string, MaterialOverride> materials;
 };
+
+// Distance beyond which free space (with both antennas' peak gains and the
+// margin) cannot reach radio.sensitivity_dbm.
+double max_range_m(const TracerConfig& tracer, const RadioConfig& radio);
 
 constexpr int kMaxDepth = 16;
 

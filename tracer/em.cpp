@@ -101,6 +101,25 @@ RadioMaterial radio_material(const std::string& name, double frequency_hz, const
   if (override.eps_r) m.eps_r = *override.eps_r;
   if (override.sigma) m.sigma = *override.sigma;
   if (override.thickness_m) m.thickness_m = *override.thickness_m;
+  m.scattering = default_scattering(m.name);
+  auto& sc = m.scattering;
+  if (override.scattering_coefficient) sc.s = *override.scattering_coefficient;
+  if (override.xpd) sc.xpd = *override.xpd;
+  if (override.lobe) sc.lobe = *override.lobe;
+  if (override.alpha_r) sc.alpha_r = *override.alpha_r;
+  if (override.alpha_i) sc.alpha_i = *override.alpha_i;
+  if (override.lambda_r) sc.lambda_r = *override.lambda_r;
+  auto unit = [&](double v, const char* what) {
+    if (!(v >= 0 && v <= 1))
+      throw std::invalid_argument("material '" + m.name + "': " + what + " must be within [0, 1], got " + fmt(v));
+  };
+  unit(sc.s, "scattering_coefficient");
+  unit(sc.xpd, "xpd");
+  unit(sc.lambda_r, "lambda_r");
+  for (int a : {sc.alpha_r, sc.alpha_i})
+    if (a < 1 || a > 20)
+      throw std::invalid_argument("material '" + m.name + "': alpha_r and alpha_i must be within 1..20, got " +
+                                  std::to_string(a));
 
   if (!std::isfinite(m.eps_r) || m.eps_r < 1)
     throw std::invalid_argument("material '" + m.name + "': eps_r must be finite and >= 1, got " + fmt(m.eps_r));
@@ -239,6 +258,174 @@ Vec3 antenna_field(const AntennaSpec& antenna, const Vec3& dir, const Vec3& forw
     return -dipole_field(antenna.pattern, z, dir);
   // +projection of y = phi_hat in the forward direction (isotropic H agrees there).
   return dipole_field(antenna.pattern, y, dir);
+}
+
+
+ScatteringLobe parse_scattering_lobe(const std::string& s) {
+  if (s == "lambertian") return ScatteringLobe::lambertian;
+  if (s == "directive") return ScatteringLobe::directive;
+  if (s == "backscatter") return ScatteringLobe::backscatter;
+  throw std::invalid_argument("unknown scattering lobe '" + s + "' (expected lambertian, directive or backscatter)");
+}
+const char* scattering_lobe_name(ScatteringLobe l) {
+  switch (l) {
+    case ScatteringLobe::lambertian: return "lambertian";
+    case ScatteringLobe::directive: return "directive";
+    case ScatteringLobe::backscatter: return "backscatter";
+  }
+  return "?";
+}
+Scattering default_scattering(const std::string& name) {
+  Scattering sc;
+  if (name == "concrete" || name == "brick") sc.s = 0.4;
+  else if (name == "wood" || name == "plasterboard" || name == "ceiling_board" || name == "chipboard" ||
+           name == "floorboard")
+    sc.s = 0.2;
+  else
+    return sc;
+  sc.xpd = 0.1;
+  sc.lobe = ScatteringLobe::directive;
+  sc.alpha_r = 4;
+  return sc;
+}
+
+double lobe_integral(int alpha, double theta) {
+  // ((1 + cos psi)/2)^alpha = 2^-alpha sum_j C(alpha, j) cos^j psi, and the
+  // hemisphere integral of cos^j psi is 2 pi / (j + 1) for even j and
+  // 2 pi / (j + 1) cos(theta) sum_{w <= (j-1)/2} C(2w, w) sin^2w(theta) / 4^w
+  // for odd j (Degli-Esposti et al. 2007, eq. 9).
+  const double ct = std::cos(theta), st2 = std::sin(theta) * std::sin(theta);
+  double sum = 0, binom = 1;  // C(alpha, j)
+  for (int j = 0; j <= alpha; ++j) {
+    double ij = 2 * kPi / (j + 1);
+    if (j % 2) {
+      double inner = 0, cw = 1, pw = 1;  // C(2w, w), (sin^2 / 4)^w
+      for (int w = 0; w <= (j - 1) / 2; ++w) {
+        inner += cw * pw;
+        cw = cw * (2.0 * w + 1) * (2.0 * w + 2) / ((w + 1.0) * (w + 1.0));
+        pw *= st2 / 4;
+      }
+      ij *= ct * inner;
+    }
+    sum += binom * ij;
+    binom = binom * (alpha - j) / (j + 1.0);
+  }
+  return sum / std::pow(2.0, alpha);
+}
+
+double scattering_pattern(const Scattering& sc, const Vec3& k_in, const Vec3& k_out, const Vec3& n_any) {
+  // The front side is where the incident wave comes from.
+  const Vec3 n = dot(k_in, n_any) < 0 ? n_any : -n_any;
+  const double cos_s = dot(k_out, n);
+  if (!(cos_s > 0)) return 0;
+  if (sc.lobe == ScatteringLobe::lambertian) return cos_s / kPi;
+  const double cos_i = std::clamp(-dot(k_in, n), 0.0, 1.0);
+  const double theta_i = std::acos(cos_i);
+  const Vec3 spec = k_in + (2 * cos_i) * n;
+  const double lobe_r = std::pow((1 + std::clamp(dot(k_out, spec), -1.0, 1.0)) / 2, sc.alpha_r);
+  if (sc.lobe == ScatteringLobe::directive) return lobe_r / lobe_integral(sc.alpha_r, theta_i);
+  const double lobe_i = std::pow((1 + std::clamp(-dot(k_out, k_in), -1.0, 1.0)) / 2, sc.alpha_i);
+  // The back lobe points along -k_in, also theta_i from the normal.
+  const double norm =
+      sc.lambda_r * lobe_integral(sc.alpha_r, theta_i) + (1 - sc.lambda_r) * lobe_integral(sc.alpha_i, theta_i);
+  return (sc.lambda_r * lobe_r + (1 - sc.lambda_r) * lobe_i) / norm;
+}
+
+namespace {
+
+// erfc(z) for z = r e^{j pi/4}, r >= 0 (the ray the Fresnel integrals live
+// on): Maclaurin series of erf for small |z| (terms stay below e^{|z|^2}, so
+// about 4 digits are lost at |z| = 3), the Laplace continued fraction
+// (modified Lentz) beyond.
+cdouble erfc_diagonal(cdouble z) {
+  const double r = std::abs(z);
+  if (r < 3.0) {
+    const cdouble z2 = z * z;
+    cdouble term = z, sum = z;  // term = (-1)^n z^{2n+1} / n!
+    for (int k = 1; k < 200; ++k) {
+      term *= -z2 / static_cast<double>(k);
+      const cdouble add = term / (2.0 * k + 1);
+      sum += add;
+      if (std::abs(add) < 1e-17 * std::abs(sum)) break;
+    }
+    return 1.0 - (2.0 / std::sqrt(kPi)) * sum;
+  }
+  // erfc z = e^{-z^2}/sqrt(pi) * 1/(z + (1/2)/(z + 1/(z + (3/2)/(z + ...)))).
+  const double tiny = 1e-300;
+  cdouble f = z, c = z, d = 0.0;
+  for (int k = 1; k < 5000; ++k) {
+    const double a = k / 2.0;
+    d = z + a * d;
+    if (std::abs(d) < tiny) d = tiny;
+    c = z + a / c;
+    if (std::abs(c) < tiny) c = tiny;
+    d = 1.0 / d;
+    const cdouble delta = c * d;
+    f *= delta;
+    if (std::abs(delta - 1.0) < 1e-16) break;
+  }
+  return std::exp(-z * z) / (std::sqrt(kPi) * f);
+}
+
+// G(x) = int_x^inf e^{-j pi t^2 / 2} dt = (1 - j)/2 erfc(sqrt(pi)/2 (1 + j) x), x >= 0.
+cdouble fresnel_tail(double x) {
+  const cdouble z = (std::sqrt(kPi) / 2) * cdouble(1, 1) * x;
+  return cdouble(0.5, -0.5) * erfc_diagonal(z);
+}
+
+}  // namespace
+
+std::pair<double, double> fresnel_cs(double x) {
+  const double ax = std::fabs(x);
+  const cdouble g = fresnel_tail(ax);  // (1/2 - C) - j (1/2 - S)
+  const double c = 0.5 - g.real(), s = 0.5 + g.imag();
+  return x < 0 ? std::pair{-c, -s} : std::pair{c, s};
+}
+
+cdouble utd_transition(double x) {
+  if (!(x > 0)) return 0.0;
+  const double u = std::sqrt(x);
+  // int_u^inf e^{-j t^2} dt = sqrt(pi/2) G(u sqrt(2/pi)).
+  const cdouble tail = std::sqrt(kPi / 2) * fresnel_tail(u * std::sqrt(2 / kPi));
+  return cdouble(0, 2) * u * std::polar(1.0, x) * tail;
+}
+
+namespace {
+
+// cot((pi + sign*beta)/(2n)) F(kL a^{sign}(beta)), with the finite limit
+// n [sqrt(2 pi kL) sgn(eps) - 2 kL eps e^{j pi/4}] e^{j pi/4} close to the
+// boundary where eps -> 0 (Kouyoumjian and Pathak's eq. for the transition
+// region), so a receiver on a shadow or reflection boundary gets a finite
+// coefficient.
+cdouble cot_f(int sign, double beta, double n, double kL) {
+  // N: the integer most nearly satisfying 2 pi n N - beta = sign * pi.
+  const double N = std::round((sign * kPi + beta) / (2 * kPi * n));
+  const double eps = kPi + sign * (beta - 2 * kPi * n * N);  // 0 on the boundary
+  if (std::fabs(eps) < 1e-5) {
+    const cdouble ej = std::polar(1.0, kPi / 4);
+    return n * (std::sqrt(2 * kPi * kL) * (eps >= 0 ? 1.0 : -1.0) - 2 * kL * eps * ej) * ej;
+  }
+  const double a = 2 * std::pow(std::cos((2 * kPi * n * N - beta) / 2), 2);
+  return utd_transition(kL * a) / std::tan((kPi + sign * beta) / (2 * n));
+}
+
+}  // namespace
+
+DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double beta0, double L, double k,
+                                  const RadioMaterial* face0, const RadioMaterial* face_n) {
+  const double kL = k * L;
+  const double sb = std::sin(beta0);
+  const cdouble pre = -std::polar(1.0, -kPi / 4) / (2 * n * std::sqrt(2 * kPi * k) * sb);
+  const double dm = phi_d - phi_i, dp = phi_d + phi_i;
+  const cdouble t1 = cot_f(+1, dm, n, kL), t2 = cot_f(-1, dm, n, kL);
+  const cdouble t3 = cot_f(-1, dp, n, kL), t4 = cot_f(+1, dp, n, kL);
+  // Luebbers: face 0 seen at the grazing angle phi_i, face n at n pi - phi_d.
+  auto refl = [&](const RadioMaterial* m, double grazing) -> TeTm {
+    if (!m) return {-1.0, 1.0};
+    return slab_coefficients(*m, std::clamp(sb * std::fabs(std::sin(grazing)), 0.0, 1.0)).r;
+  };
+  const TeTm r0 = refl(face0, phi_i), rn = refl(face_n, n * kPi - phi_d);
+  return {pre * (t1 + t2 + r0.te * t3 + rn.te * t4), pre * (t1 + t2 + r0.tm * t3 + rn.tm * t4)};
 }
 
 }  // namespace raysweep::tracer

@@ -13,6 +13,7 @@
 
 #include <complex>
 #include <optional>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -35,6 +36,41 @@ struct P2040Row {
 };
 const std::vector<P2040Row>& p2040_table();
 
+// Diffuse scattering of a rough surface, effective roughness model
+// (Degli-Esposti et al., IEEE TAP 55(1), 2007): a fraction S^2 of the power a
+// smooth surface would reflect is scattered; of it, a fraction `xpd` goes to
+// the cross polarisation. The lobe sets the angular spread:
+//  - lambertian: f ~ cos theta_s;
+//  - directive: f ~ ((1 + cos psi_R) / 2)^alpha_r around the specular direction;
+//  - backscatter: lambda_r of the directive lobe plus (1 - lambda_r) of a lobe
+//    ((1 + cos psi_i) / 2)^alpha_i around the direction back to the source.
+enum class ScatteringLobe { lambertian, directive, backscatter };
+ScatteringLobe parse_scattering_lobe(const std::string& s);  // "lambertian" | "directive" | "backscatter"
+const char* scattering_lobe_name(ScatteringLobe l);
+
+struct Scattering {
+  double s = 0;    // scattering coefficient S in [0, 1]
+  double xpd = 0;  // cross-polarised fraction K_x of the scattered power, [0, 1]
+  ScatteringLobe lobe = ScatteringLobe::directive;
+  int alpha_r = 4, alpha_i = 4;  // lobe widths (integers 1..20)
+  double lambda_r = 0.75;        // backscatter: share of the specular lobe, [0, 1]
+};
+
+// Default roughness by material: building facades (concrete, brick) S = 0.4
+// and wood, plasterboard, boards S = 0.2 with a directive lobe alpha_r = 4 and
+// K_x = 0.1 (Degli-Esposti's urban fits); glass, metal and grounds (smooth at
+// a few cm wavelength) and custom materials S = 0.
+Scattering default_scattering(const std::string& name);
+
+// Scattering pattern f (1/sr), normalised so its integral over the
+// hemisphere in front of the surface is 1, for a wave arriving along unit
+// `k_in` on a surface with unit normal `n` (either orientation), scattered
+// towards unit `k_out` (0 when k_out is behind the surface).
+double scattering_pattern(const Scattering& sc, const Vec3& k_in, const Vec3& k_out, const Vec3& n);
+// Integral over the hemisphere of ((1 + cos psi)/2)^alpha, psi the angle to
+// a direction at `theta` from the normal (Degli-Esposti's F_alpha, closed form).
+double lobe_integral(int alpha, double theta);
+
 // A material evaluated at one carrier frequency.
 struct RadioMaterial {
   std::string name;
@@ -42,6 +78,7 @@ struct RadioMaterial {
   double sigma = 0;         // conductivity, S/m
   double thickness_m = 0;   // slab thickness; 0 = half space (reflects, never transmits)
   double frequency_hz = 0;  // the carrier it was evaluated at
+  Scattering scattering;
   // Complex relative permittivity eps_r - j sigma / (2 pi f eps0).
   cdouble eta() const;
 };
@@ -49,6 +86,9 @@ struct RadioMaterial {
 // Config overrides of a material ([materials.<name>] in the TOML config).
 struct MaterialOverride {
   std::optional<double> eps_r, sigma, thickness_m;
+  std::optional<double> scattering_coefficient, xpd, lambda_r;
+  std::optional<ScatteringLobe> lobe;
+  std::optional<int> alpha_r, alpha_i;
 };
 
 // Default slab thickness by name: glass 5 mm, concrete 0.3 m, brick 0.25 m,
@@ -81,6 +121,29 @@ struct SlabCoefficients {
   TeTm r, t;
 };
 SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta);
+
+// The UTD transition function F(X) = 2j sqrt(X) e^{jX} int_{sqrt X}^inf e^{-j t^2} dt
+// (Kouyoumjian and Pathak, Proc. IEEE 1974), X >= 0; F(0) = 0, F -> 1 for large X.
+cdouble utd_transition(double x);
+
+// Fresnel integrals C(x) = int_0^x cos(pi t^2 / 2) dt and S(x) likewise.
+std::pair<double, double> fresnel_cs(double x);
+
+// UTD wedge diffraction coefficients (soft: E parallel to the edge, hard:
+// H parallel to it) for an exterior wedge angle n*pi (1 < n <= 2; n = 2 is a
+// half plane), incidence angle phi_i and observation angle phi_d measured
+// from face 0 through the exterior (0..n pi), beta0 the angle between the
+// rays and the edge, distance parameter L (m) and wavenumber k. The faces'
+// reflection coefficients enter by Luebbers' rule (IEEE TAP 32(1), 1984):
+// face 0 at the grazing angle phi_i, face n at n pi - phi_d, each evaluated
+// as a slab of its material; nullptr means a perfect conductor (R = -1 soft,
+// +1 hard). Near the shadow and reflection boundaries the products cot * F
+// are replaced by their finite limits, so the coefficients never blow up.
+struct DiffractionCoefficients {
+  cdouble soft, hard;
+};
+DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double beta0, double L, double k,
+                                  const RadioMaterial* face0, const RadioMaterial* face_n);
 
 enum class AntennaPattern { isotropic, short_dipole, halfwave_dipole };
 enum class Polarization { V, H };

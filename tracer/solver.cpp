@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <stdexcept>
+#include <map>
 #include <unordered_map>
 #include <unordered_set>
 
@@ -61,6 +62,28 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (!(t.reception_radius_factor > 0)) bad("tracer.reception_radius_factor must be positive");
   if (t.max_transmissions < 0) bad("tracer.max_transmissions must be >= 0");
   if (!(t.sbr_transmission_loss_db >= 0)) bad("tracer.sbr_transmission_loss_db must be >= 0");
+  if (!std::isfinite(t.path_threshold_db)) bad("tracer.path_threshold_db must be finite (<= 0 keeps every path)");
+  if (std::isnan(t.range_margin_db)) bad("tracer.range_margin_db must be a number");
+  if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
+}
+
+namespace {
+double peak_gain(AntennaPattern p) {
+  switch (p) {
+    case AntennaPattern::isotropic: return 1.0;
+    case AntennaPattern::short_dipole: return 1.5;
+    case AntennaPattern::halfwave_dipole: return 1.641;
+  }
+  return 1.0;
+}
+}  // namespace
+
+double max_range_m(const TracerConfig& t, const RadioConfig& r) {
+  // Free space: P_rx = P_tx G^2 (lambda / (4 pi d))^2.
+  const double budget_db = r.tx_power_dbm - r.sensitivity_dbm + 20 * std::log10(peak_gain(r.antenna.pattern)) +
+                           t.range_margin_db;
+  const double lambda = kSpeedOfLight / r.frequency_hz;
+  return lambda / (4 * kPi) * std::pow(10.0, budget_db / 20);
 }
 
 Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const RadioConfig& radio,
@@ -214,7 +237,11 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
     const Vec3 ep_in = cross(es, k_in);
     if (ev.reflection) {
       const Vec3 k_out = k_in - (2 * dot(k_in, p.normal)) * p.normal;
-      e = combine(c.r.te * cdot(e, es), es, c.r.tm * cdot(e, ep_in), cross(es, k_out));
+      // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
+      // scattered part is traced (effective roughness energy partition).
+      const double S = config.diffuse ? em.material(mat).scattering.s : 0.0;
+      const double keep = S > 0 ? std::sqrt(1 - S * S) : 1.0;
+      e = combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, ep_in), cross(es, k_out));
     } else {
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
       e = combine(c.t.te * cdot(e, es), es, c.t.tm * cdot(e, ep_in), ep_in);
@@ -248,11 +275,151 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
 
 namespace {
 
-// Shoot-and-bounce from node `src`: face sequences that pass near other nodes.
+// Angle of `v` around an edge, from t0 towards n0, in [0, 2 pi).
+double edge_angle(const Edge& e, const Vec3& v) {
+  double a = std::atan2(dot(v, e.n0), dot(v, e.t0));
+  return a < 0 ? a + 2 * kPi : a;
+}
+
+// The leg a -> b (length len along unit dir) is free of everything but the
+// two faces of the edge it starts or ends on.
+bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const Vec3& dir, double len, bool from_edge,
+               std::uint64_t* rays) {
+  std::vector<Hit> hits;
+  const double t0 = from_edge ? 0 : scene.slack(a, 0) * 0.1;
+  const double t1 = from_edge ? len - scene.slack(a, len) * 0.1 : len;
+  if (t1 <= t0) return false;
+  scene.all_hits(a, dir, t0, t1, hits, 8);
+  if (rays) *rays += hits.size() + 1;
+  for (const auto& h : hits)
+    if (h.face != edge.face0 && h.face != edge.face_n) return false;
+  return hits.size() < 8;
+}
+
+}  // namespace
+
+std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
+                                             const Node& to, const Edge& edge, std::uint64_t* rays) {
+  const Vec3 tx = from.position, rx = to.position;
+  const double len = norm(edge.b - edge.a);
+  const Vec3 wt = tx - edge.a, wr = rx - edge.a;
+  const double zt = dot(wt, edge.e), zr = dot(wr, edge.e);
+  const Vec3 vt = wt - zt * edge.e, vr = wr - zr * edge.e;
+  const double rt = norm(vt), rr = norm(vr);
+  if (rt < 1e-6 || rr < 1e-6) return std::nullopt;  // an antenna on the edge line
+  const double phi_i = edge_angle(edge, vt), phi_d = edge_angle(edge, vr);
+  const double ext = edge.n * kPi;
+  if (phi_i > ext || phi_d > ext) return std::nullopt;  // inside the wedge
+  // Keller: equal angles with the edge, i.e. the point where the unfolded
+  // straight line crosses the edge.
+  const double zq = (zt * rr + zr * rt) / (rt + rr);
+  if (zq < 0 || zq > len) return std::nullopt;
+  const Vec3 q = edge.a + zq * edge.e;
+  const double sp = norm(q - tx), sd = norm(rx - q);
+  const Vec3 s_in = (1.0 / sp) * (q - tx), s_out = (1.0 / sd) * (rx - q);
+  const double sin_b = norm(cross(edge.e, s_in));
+  if (sin_b < 1e-6) return std::nullopt;  // grazing along the edge
+  if (!leg_clear(scene, edge, tx, s_in, sp, false, rays) || !leg_clear(scene, edge, q, s_out, sd, true, rays))
+    return std::nullopt;
+
+  const double lambda = em.wavelength();
+  const double k = 2 * kPi / lambda;
+  const double beta0 = std::acos(std::clamp(dot(edge.e, s_in), -1.0, 1.0));
+  const double L = sd * sp * sin_b * sin_b / (sd + sp);
+  const auto D = utd_wedge(edge.n, phi_i, phi_d, beta0, L, k, &em.material(edge.material0),
+                           &em.material(edge.material_n));
+  // Edge-fixed polarisation bases (Kouyoumjian and Pathak).
+  const Vec3 phi_in = -1.0 * normalize(cross(edge.e, s_in));
+  const Vec3 beta_in = cross(s_in, phi_in);
+  const Vec3 phi_out = normalize(cross(edge.e, s_out));
+  const Vec3 beta_out = cross(s_out, phi_out);
+  const Vec3 e_tx = antenna_field(em.radio().antenna, s_in, from.forward);
+  const Vec3 f_rx = antenna_field(em.radio().antenna, -s_out, to.forward);
+  const cdouble field = -(D.soft * dot(e_tx, beta_in) * dot(f_rx, beta_out) + D.hard * dot(e_tx, phi_in) * dot(f_rx, phi_out));
+  const double length = sp + sd;
+  Path path;
+  path.tau_s = length / kSpeedOfLight;
+  const double phase = -2 * kPi * std::fmod(length / lambda, 1.0);
+  path.a = (lambda / (4 * kPi)) / std::sqrt(sp * sd * length) * field * std::polar(1.0, phase);
+  path.theta_t = zenith(s_in);
+  path.phi_t = azimuth(s_in);
+  path.theta_r = zenith(-s_out);
+  path.phi_r = azimuth(-s_out);
+  path.doppler_hz = -(dot(s_in, -1.0 * from.velocity) + dot(s_out, to.velocity)) / lambda;
+  path.interactions.push_back(Interaction{InteractionType::diffraction, edge.object, edge.material0, q});
+  return path;
+}
+
+namespace {
+
+// Diffuse contributions of one source's rays, binned per receiver, face
+// sequence (reflections, then the scattering face) and delay bin; sums in
+// a fixed order (rays within a chunk, chunks in index order), so the result
+// does not depend on the thread count.
+struct DiffuseKey {
+  std::uint32_t rx = 0;
+  std::int64_t bin = 0;
+  int n = 0;
+  std::array<FaceRef, kMaxDepth + 1> faces{};
+  bool operator==(const DiffuseKey& o) const {
+    return rx == o.rx && bin == o.bin && n == o.n && std::equal(faces.begin(), faces.begin() + n, o.faces.begin());
+  }
+  bool operator<(const DiffuseKey& o) const {
+    if (rx != o.rx) return rx < o.rx;
+    if (n != o.n) return n < o.n;
+    for (int i = 0; i < n; ++i)
+      if (faces[i] != o.faces[i]) return faces[i] < o.faces[i];
+    return bin < o.bin;
+  }
+};
+struct DiffuseKeyHash {
+  std::size_t operator()(const DiffuseKey& k) const {
+    std::size_t h = (k.rx * 0x9E3779B97F4A7C15ull) ^ static_cast<std::size_t>(k.bin) * 0xC2B2AE3D27D4EB4Full;
+    for (int i = 0; i < k.n; ++i)
+      h = (h ^ (std::size_t(k.faces[i].instance) << 32 ^ k.faces[i].face)) * 0x100000001B3ull;
+    return h;
+  }
+};
+struct DiffuseAcc {
+  double power = 0;          // sum of |a|^2
+  double tau = 0;            // power-weighted sums from here on
+  Vec3 point{0, 0, 0};       // scattering point
+  Vec3 departure{0, 0, 0};   // ray direction at the source
+  Vec3 arrival{0, 0, 0};     // from rx towards the scattering point
+  double doppler = 0;
+  double peak = 0;           // strongest single contribution: its earlier reflection points represent the bin
+  std::array<Vec3, kMaxDepth> prefix{};
+  void add(const DiffuseAcc& o) {
+    power += o.power;
+    tau += o.tau;
+    point = point + o.point;
+    departure = departure + o.departure;
+    arrival = arrival + o.arrival;
+    doppler += o.doppler;
+    if (o.peak > peak) {
+      peak = o.peak;
+      prefix = o.prefix;
+    }
+  }
+};
+using DiffuseBins = std::vector<std::pair<DiffuseKey, DiffuseAcc>>;
+
+// What a source needs to scatter towards its receivers.
+struct DiffuseTargets {
+  std::vector<std::uint32_t> rx;  // receivers j > src of requested, in-range pairs
+  double bin_s = 1e-7;            // delay bin width
+};
+
+// Shoot-and-bounce from node `src`: face sequences that pass near other nodes
+// and, with diffuse scattering on, the scattered power at each hit.
 void shoot_from(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& cfg,
                 const std::vector<Node>& nodes, std::uint32_t src, const std::vector<Vec3>& lattice,
-                std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays) {
+                std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays,
+                const DiffuseTargets* diffuse, DiffuseBins* diffuse_out) {
   const double spacing = std::sqrt(4 * kPi / static_cast<double>(lattice.size())) * cfg.reception_radius_factor;
+  const bool scatter = diffuse && !diffuse->rx.empty();
+  const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
+  const double lambda = em.wavelength();
   struct State {
     Vec3 o, d;
     double len;
@@ -261,6 +428,13 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
     bool has_leaving;
     FaceRef leaving;
     Sequence seq;
+    // Diffuse bookkeeping: the ray tube's field (transmit pattern times
+    // every coefficient so far), dL/dt of the legs so far, the velocity of
+    // the last interaction point, and the reflection points.
+    CVec3 field;
+    double dl_dt;
+    Vec3 v_prev;
+    std::array<Vec3, kMaxDepth> points;
   };
   std::vector<State> stack;
   const Vec3 ref = nodes[src].position;
@@ -273,8 +447,11 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
   std::vector<unsigned char> inside(nodes.size());
   std::unordered_set<CandidateKey, CandidateHash> seen;
   CandidateKey key;
+  std::unordered_map<DiffuseKey, std::size_t, DiffuseKeyHash> bin_index;
   for (std::size_t r = begin; r < end; ++r) {
-    stack.push_back(State{nodes[src].position, lattice[r], 0, 0, 0, false, {}, {}});
+    State first{nodes[src].position, lattice[r], 0, 0, 0, false, {}, {}, {}, 0, nodes[src].velocity, {}};
+    if (scatter) first.field = cvec(antenna_field(em.radio().antenna, lattice[r], nodes[src].forward));
+    stack.push_back(first);
     while (!stack.empty()) {
       State st = stack.back();
       stack.pop_back();
@@ -313,15 +490,112 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       if (!got) continue;
       const Vec3 p = st.o + hit.t * st.d;
       const auto mat = scene.material(hit.face);
-      if (cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat)) {
-        const double loss = st.loss_db + em.normal_transmission_loss_db(mat);
-        if (loss <= cfg.sbr_transmission_loss_db)
-          stack.push_back(State{p, st.d, st.len + hit.t, st.transmissions + 1, loss, true, hit.face, st.seq});
+      const RadioMaterial& material = em.material(mat);
+      const double s_coef = scatter ? material.scattering.s : 0.0;
+      const bool can_scatter = s_coef > 0 && st.seq.n < cfg.max_depth;
+      const bool can_reflect = cfg.specular && st.seq.n < cfg.max_depth;
+      const bool can_transmit = cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat);
+      Plane plane;
+      SlabCoefficients coef{};
+      Vec3 es{0, 0, 0}, ep_in{0, 0, 0};
+      double cos_theta = 0;
+      if (scatter || can_reflect) plane = scene.plane(hit.face);
+      if (scatter) {
+        cos_theta = std::fabs(dot(st.d, plane.normal));
+        coef = em.coefficients(mat, cos_theta);
+        es = te_basis(st.d, plane.normal);
+        ep_in = cross(es, st.d);
       }
-      if (cfg.specular && st.seq.n < cfg.max_depth) {
-        const Vec3 n = scene.plane(hit.face).normal;
-        State next{p, st.d - (2 * dot(st.d, n)) * n, st.len + hit.t, st.transmissions, st.loss_db, true, hit.face,
-                   st.seq};
+      const Vec3 k_out = can_reflect || can_scatter ? st.d - (2 * dot(st.d, plane.normal)) * plane.normal : Vec3{};
+      if (can_scatter) {
+        // The field a smooth surface would reflect; S^2 of its power is
+        // scattered, (1 - K_x) in its polarisation and K_x across it.
+        const CVec3 e_ref =
+            combine(coef.r.te * cdot(st.field, es), es, coef.r.tm * cdot(st.field, ep_in), cross(es, k_out));
+        const Vec3 v_surf = scene.velocity(hit.face);
+        const double dl_in = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+        const double len_in = st.len + hit.t;
+        const Scattering& sc = material.scattering;
+        for (std::uint32_t j : diffuse->rx) {
+          const Vec3 w = nodes[j].position - p;
+          const double rs = norm(w);
+          if (rs < 1e-6) continue;
+          const Vec3 ks = (1.0 / rs) * w;
+          const double f = scattering_pattern(sc, st.d, ks, plane.normal);
+          if (!(f > 0)) continue;
+          Hit block;
+          ++rays;
+          if (scene.closest_hit(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, block, &hit.face)) continue;
+          // Transverse part of the reflected field towards the receiver.
+          const cdouble along = cdot(e_ref, ks);
+          const CVec3 et{e_ref[0] - along * ks[0], e_ref[1] - along * ks[1], e_ref[2] - along * ks[2]};
+          const double et2 = std::norm(et[0]) + std::norm(et[1]) + std::norm(et[2]);
+          const double er2 = std::norm(e_ref[0]) + std::norm(e_ref[1]) + std::norm(e_ref[2]);
+          if (!(et2 > 1e-30)) continue;
+          const Vec3 fr = antenna_field(em.radio().antenna, -ks, nodes[j].forward);
+          const CVec3 ex{ks[1] * et[2] - ks[2] * et[1], ks[2] * et[0] - ks[0] * et[2], ks[0] * et[1] - ks[1] * et[0]};
+          const double co = std::norm(cdot(et, fr)), cross_pol = std::norm(cdot(ex, fr));
+          const double g_eff = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * er2 / et2;
+          const double power =
+              s_coef * s_coef * f * g_eff * lambda * lambda * d_omega / (16 * kPi * kPi * rs * rs);
+          if (!(power > 0)) continue;
+          const double tau = (len_in + rs) / kSpeedOfLight;
+          DiffuseKey dk;
+          dk.rx = j;
+          dk.n = st.seq.n + 1;
+          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, dk.faces.begin());
+          dk.faces[st.seq.n] = hit.face;
+          dk.bin = static_cast<std::int64_t>(std::floor(tau / diffuse->bin_s));
+          auto [it, fresh] = bin_index.try_emplace(dk, diffuse_out->size());
+          if (fresh) diffuse_out->emplace_back(dk, DiffuseAcc{});
+          DiffuseAcc c;
+          c.power = power;
+          c.tau = power * tau;
+          c.point = power * p;
+          c.departure = power * lattice[r];
+          c.arrival = power * (-1.0 * ks);
+          const double dl = dl_in + dot(ks, nodes[j].velocity - v_surf);
+          c.doppler = power * (-dl / lambda);
+          c.peak = power;
+          c.prefix = st.points;
+          (*diffuse_out)[it->second].second.add(c);
+        }
+      }
+      if (can_transmit) {
+        const double loss = st.loss_db + em.normal_transmission_loss_db(mat);
+        if (loss <= cfg.sbr_transmission_loss_db) {
+          State next = st;
+          next.o = p;
+          next.len = st.len + hit.t;
+          next.transmissions = st.transmissions + 1;
+          next.loss_db = loss;
+          next.has_leaving = true;
+          next.leaving = hit.face;
+          if (scatter) {
+            next.field = combine(coef.t.te * cdot(st.field, es), es, coef.t.tm * cdot(st.field, ep_in), ep_in);
+            const Vec3 v_surf = scene.velocity(hit.face);
+            next.dl_dt = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+            next.v_prev = v_surf;
+          }
+          stack.push_back(next);
+        }
+      }
+      if (can_reflect) {
+        State next = st;
+        next.o = p;
+        next.d = k_out;
+        next.len = st.len + hit.t;
+        next.has_leaving = true;
+        next.leaving = hit.face;
+        if (scatter) {
+          next.points[st.seq.n] = p;
+          const double keep = std::sqrt(1 - s_coef * s_coef);
+          next.field = combine(keep * coef.r.te * cdot(st.field, es), es, keep * coef.r.tm * cdot(st.field, ep_in),
+                               cross(es, k_out));
+          const Vec3 v_surf = scene.velocity(hit.face);
+          next.dl_dt = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+          next.v_prev = v_surf;
+        }
         next.seq.faces[next.seq.n++] = hit.face;
         stack.push_back(next);
       }
@@ -356,15 +630,48 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
   return trace_pairs(scene, nodes, pairs, cfg, radio);
 }
 
+namespace {
+
+// Edges each node can see the outside of, within `range` of it: the cheap
+// half of the diffraction test (a pair needs an edge both its ends see).
+std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, const std::vector<Node>& nodes,
+                                                   const std::vector<unsigned char>& wanted, double range) {
+  const auto& edges = scene.edges();
+  std::vector<std::vector<std::uint32_t>> seen(nodes.size());
+  tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t i) {
+    if (!wanted[i]) return;
+    const Vec3 p = nodes[i].position;
+    for (std::uint32_t k = 0; k < edges.size(); ++k) {
+      const Edge& e = edges[k];
+      const Vec3 w = p - e.a;
+      const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
+      const Vec3 v = w - dot(w, e.e) * e.e;
+      if (norm(p - (e.a + z * e.e)) > range) continue;
+      double phi = std::atan2(dot(v, e.n0), dot(v, e.t0));
+      if (phi < 0) phi += 2 * kPi;
+      if (phi <= e.n * kPi) seen[i].push_back(k);
+    }
+  });
+  return seen;
+}
+
+}  // namespace
+
 Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
                      const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& cfg,
                      const RadioConfig& radio) {
   validate(cfg, radio);
-  for (const auto& n : nodes)
+  for (const auto& n : nodes) {
     for (double c : n.position)
       if (!std::isfinite(c)) throw std::invalid_argument("node " + n.id + ": position is not finite");
+    for (double c : n.velocity)
+      if (!std::isfinite(c)) throw std::invalid_argument("node " + n.id + ": velocity is not finite");
+    for (double c : n.forward)
+      if (!std::isfinite(c)) throw std::invalid_argument("node " + n.id + ": orientation is not finite");
+  }
   const Electromagnetics em(scene.material_names(), radio, cfg.materials);
   const auto n = static_cast<std::uint32_t>(nodes.size());
+  const double range = max_range_m(cfg, radio);
   Snapshot snap;
   // Which pair slot each (i, j) feeds; sources shoot only when they have a
   // pair to serve. A pair's candidates come from its own two ends, so a pair
@@ -373,65 +680,96 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   slot.reserve(pairs.size());
   std::vector<std::uint32_t> sources;
   std::vector<unsigned char> is_source(n, 0);
+  std::vector<unsigned char> in_range(pairs.size(), 1);
+  std::vector<DiffuseTargets> targets(cfg.diffuse ? n : 0);
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     auto [i, j] = pairs[p];
     if (i >= j || j >= n) throw std::invalid_argument("trace_pairs: pair (" + std::to_string(i) + ", " +
                                                       std::to_string(j) + ") is not i < j < node count");
     if (!slot.emplace(static_cast<std::uint64_t>(i) << 32 | j, p).second)
       throw std::invalid_argument("trace_pairs: pair (" + std::to_string(i) + ", " + std::to_string(j) + ") twice");
+    if (norm(nodes[j].position - nodes[i].position) > range) {
+      in_range[p] = 0;  // labelled, never traced
+      continue;
+    }
+    // Diffuse power is gathered from the lower end's rays only.
+    if (cfg.diffuse) targets[i].rx.push_back(j);
     for (auto e : {i, j}) {
       if (is_source[e]) continue;
       is_source[e] = 1;
       sources.push_back(e);
     }
   }
+  for (auto& t : targets) {
+    std::sort(t.rx.begin(), t.rx.end());
+    t.bin_s = 1.0 / radio.bandwidth_hz;
+  }
   std::sort(sources.begin(), sources.end());
   std::vector<std::vector<std::vector<FaceRef>>> candidates(pairs.size());
+  std::vector<std::map<DiffuseKey, DiffuseAcc>> diffuse(cfg.diffuse ? pairs.size() : 0);
 
   std::uint64_t search_rays = 0;
-  if (cfg.specular && cfg.max_depth > 0 && n > 1) {
-    if (cfg.candidates == CandidateSearch::exhaustive) {
-      std::vector<std::vector<FaceRef>> all;
-      std::vector<FaceRef> current;
-      enumerate_all(scene, cfg.max_depth, current, all);
-      for (auto& c : candidates) c = all;
-    } else {
-      const auto lattice = fibonacci_sphere(cfg.rays_per_source);
-      const std::size_t chunk = 256;
-      const std::size_t chunks = (lattice.size() + chunk - 1) / chunk;
-      struct Local {
-        std::vector<std::pair<std::uint32_t, CandidateKey>> found;
-        std::uint64_t rays = 0;
-      };
-      tbb::enumerable_thread_specific<Local> locals;
-      tbb::parallel_for(std::size_t{0}, sources.size() * chunks, [&](std::size_t task) {
-        const auto src = sources[task / chunks];
-        const std::size_t c = task % chunks;
-        auto& local = locals.local();
-        std::vector<CandidateKey> out;
-        shoot_from(scene, em, cfg, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk), out,
-                   local.rays);
-        for (auto& k : out) local.found.emplace_back(src, std::move(k));
-      });
-      for (auto& local : locals) {
-        search_rays += local.rays;
-        for (auto& [src, k] : local.found) {
-          const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
-          const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
-          if (it == slot.end()) continue;
-          if (src > k.other) std::reverse(k.faces.begin(), k.faces.end());
-          candidates[it->second].push_back(std::move(k.faces));
-        }
+  const bool sbr_specular = cfg.specular && cfg.max_depth > 0 && cfg.candidates == CandidateSearch::sbr;
+  const bool sbr_diffuse = cfg.diffuse && cfg.max_depth > 0;
+  if (cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::exhaustive) {
+    std::vector<std::vector<FaceRef>> all;
+    std::vector<FaceRef> current;
+    enumerate_all(scene, cfg.max_depth, current, all);
+    for (std::size_t p = 0; p < pairs.size(); ++p)
+      if (in_range[p]) candidates[p] = all;
+  }
+  if ((sbr_specular || sbr_diffuse) && n > 1) {
+    const auto lattice = fibonacci_sphere(cfg.rays_per_source);
+    const std::size_t chunk = 256;
+    const std::size_t chunks = (lattice.size() + chunk - 1) / chunk;
+    struct TaskOut {
+      std::vector<CandidateKey> found;
+      DiffuseBins bins;
+      std::uint64_t rays = 0;
+    };
+    std::vector<TaskOut> tasks(sources.size() * chunks);
+    tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
+      const auto src = sources[task / chunks];
+      const std::size_t c = task % chunks;
+      TaskOut& out = tasks[task];
+      TracerConfig local = cfg;
+      local.specular = cfg.specular && cfg.candidates == CandidateSearch::sbr;
+      shoot_from(scene, em, local, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk),
+                 out.found, out.rays, cfg.diffuse ? &targets[src] : nullptr, &out.bins);
+      if (!sbr_specular) out.found.clear();
+    });
+    // Merged in task order: the same sums for any thread count.
+    for (std::size_t task = 0; task < tasks.size(); ++task) {
+      const auto src = sources[task / chunks];
+      auto& out = tasks[task];
+      search_rays += out.rays;
+      for (auto& k : out.found) {
+        const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
+        const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
+        if (it == slot.end() || !in_range[it->second]) continue;
+        if (src > k.other) std::reverse(k.faces.begin(), k.faces.end());
+        candidates[it->second].push_back(std::move(k.faces));
       }
-      // Thread-local order varies; the sorted set does not.
-      tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t p) {
-        auto& c = candidates[p];
-        std::sort(c.begin(), c.end());
-        c.erase(std::unique(c.begin(), c.end()), c.end());
-      });
+      for (auto& [dk, acc] : out.bins) {
+        const auto it = slot.find(static_cast<std::uint64_t>(src) << 32 | dk.rx);
+        if (it == slot.end()) continue;
+        diffuse[it->second][dk].add(acc);
+      }
+      out = TaskOut{};
     }
+    // Thread-local order varies; the sorted set does not.
+    tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t p) {
+      auto& c = candidates[p];
+      std::sort(c.begin(), c.end());
+      c.erase(std::unique(c.begin(), c.end()), c.end());
+    });
   }
 
+  // Diffraction: per node the edges it sees, per pair their intersection.
+  std::vector<std::vector<std::uint32_t>> seen;
+  if (cfg.diffraction && !scene.edges().empty()) seen = edges_seen(scene, nodes, is_source, range);
+
+  const double lambda = em.wavelength();
   snap.pairs.resize(pairs.size());
   tbb::enumerable_thread_specific<std::uint64_t> pair_rays(0);
   tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t p) {
@@ -441,6 +779,11 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     res.rx = j;
     auto& rays = pair_rays.local();
     res.los_class = classify_los(scene, nodes[i].position, nodes[j].position, res.blockers, &rays);
+    if (!in_range[p]) {
+      res.out_of_range = true;
+      res.stats = path_stats(res.paths);
+      return;
+    }
     auto add = [&](const std::vector<FaceRef>& faces) {
       bool over = false;
       if (auto path = compute_path(scene, em, cfg, nodes[i], nodes[j], faces, &over, &rays))
@@ -451,6 +794,44 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     if (cfg.los) add({});
     for (const auto& faces : candidates[p]) add(faces);
     res.candidates = static_cast<std::uint32_t>(candidates[p].size() + (cfg.los ? 1 : 0));
+    if (!seen.empty()) {
+      const auto &ei = seen[i], &ej = seen[j];
+      std::size_t x = 0, y = 0;
+      while (x < ei.size() && y < ej.size()) {
+        if (ei[x] < ej[y]) ++x;
+        else if (ej[y] < ei[x]) ++y;
+        else {
+          ++res.candidates;
+          if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[ei[x]], &rays))
+            res.paths.push_back(std::move(*path));
+          ++x;
+          ++y;
+        }
+      }
+    }
+    if (cfg.diffuse) {
+      for (const auto& [dk, acc] : diffuse[p]) {
+        if (!(acc.power > 0)) continue;
+        Path path;
+        const double w = 1.0 / acc.power;
+        path.tau_s = acc.tau * w;
+        const double phase = -2 * kPi * std::fmod(path.tau_s * kSpeedOfLight / lambda, 1.0);
+        path.a = std::polar(std::sqrt(acc.power), phase);
+        const Vec3 dep = normalize(acc.departure), arr = normalize(acc.arrival);
+        path.theta_t = zenith(dep);
+        path.phi_t = azimuth(dep);
+        path.theta_r = zenith(arr);
+        path.phi_r = azimuth(arr);
+        path.doppler_hz = acc.doppler * w;
+        for (int q = 0; q + 1 < dk.n; ++q)
+          path.interactions.push_back(Interaction{InteractionType::specular, scene.object(dk.faces[q]),
+                                                  scene.material(dk.faces[q]), acc.prefix[q]});
+        const FaceRef last = dk.faces[dk.n - 1];
+        path.interactions.push_back(
+            Interaction{InteractionType::diffuse, scene.object(last), scene.material(last), w * acc.point});
+        res.paths.push_back(std::move(path));
+      }
+    }
     // Distinct face sequences can still describe one physical path (a point
     // on the seam of two faces that are coplanar in fact): keep the first.
     std::stable_sort(res.paths.begin(), res.paths.end(),
@@ -469,6 +850,16 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       }
       if (!dup) unique.push_back(std::move(path));
     }
+    // Model no more than matters: paths far below the pair's strongest.
+    if (cfg.path_threshold_db > 0 && !unique.empty()) {
+      double peak = 0;
+      for (const auto& path : unique) peak = std::max(peak, std::norm(path.a));
+      const double floor = peak * std::pow(10.0, -cfg.path_threshold_db / 10);
+      const auto keep = std::stable_partition(unique.begin(), unique.end(),
+                                              [&](const Path& path) { return std::norm(path.a) >= floor; });
+      res.dropped_threshold = static_cast<std::uint32_t>(unique.end() - keep);
+      unique.erase(keep, unique.end());
+    }
     res.paths = std::move(unique);
     res.stats = path_stats(res.paths);
   });
@@ -478,6 +869,14 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     snap.stats.candidates += r.candidates;
     snap.stats.paths += r.paths.size();
     snap.stats.dropped_transmission_cap += r.dropped_transmission_cap;
+    snap.stats.dropped_threshold += r.dropped_threshold;
+    snap.stats.out_of_range_pairs += r.out_of_range;
+    for (const auto& path : r.paths) {
+      if (path.interactions.empty()) continue;
+      const auto t = path.interactions.back().type;
+      snap.stats.diffraction_paths += t == InteractionType::diffraction;
+      snap.stats.diffuse_paths += t == InteractionType::diffuse;
+    }
   }
   return snap;
 }

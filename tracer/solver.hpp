@@ -43,6 +43,8 @@ struct PairResult {
   PathStats stats;
   std::uint32_t candidates = 0;         // face sequences refined
   std::uint32_t dropped_transmission_cap = 0;  // valid paths dropped for crossing > max_transmissions slabs
+  std::uint32_t dropped_threshold = 0;  // paths dropped for being path_threshold_db below the strongest
+  bool out_of_range = false;  // beyond max_range_m: not traced, no paths (LoS class still classified)
 };
 
 struct SnapshotStats {
@@ -50,6 +52,9 @@ struct SnapshotStats {
   std::uint64_t candidates = 0;
   std::uint64_t paths = 0;
   std::uint64_t dropped_transmission_cap = 0;
+  std::uint64_t dropped_threshold = 0;
+  std::uint64_t out_of_range_pairs = 0;
+  std::uint64_t diffraction_paths = 0, diffuse_paths = 0;  // kept paths ending in those interactions
 };
 
 struct Snapshot {
@@ -97,6 +102,11 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
 std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
                                  const Node& from, const Node& to, const std::vector<FaceRef>& faces,
                                  bool* over_cap = nullptr, std::uint64_t* rays = nullptr);
+
+// The first-order diffracted path from `from` to `to` over static edge
+// `edge` (Keller's law, both sides visible), or nullopt.
+std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
+                                             const Node& to, const Edge& edge, std::uint64_t* rays = nullptr);
 
 // The LoS class of the direct segment and the objects blocking it.
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,

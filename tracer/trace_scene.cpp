@@ -5,6 +5,7 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <functional>
 #include <limits>
@@ -12,6 +13,7 @@
 #include <stdexcept>
 
 #include "meshkit/planar_faces.hpp"
+#include "tracer/em.hpp"
 
 namespace raysweep::tracer {
 
@@ -70,6 +72,7 @@ struct TraceScene::Impl {
   std::vector<RTCGeometry> slots;  // vehicle instance v lives at top-level geometry id v + 1
   std::vector<bool> slot_enabled;
   std::vector<double> cos_yaw, sin_yaw;
+  std::vector<Edge> edges;
 
   const Shape& shape_of(const FaceRef& f, const std::vector<VehiclePose>& vehicles) const {
     return f.instance == 0 ? world : *models[vehicles[f.instance - 1].model];
@@ -153,6 +156,115 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
   check_device(device, s.name.c_str());
 }
 
+namespace {
+
+// Diffracting edges of a shape: triangle edges (matched by position, so
+// meshes with duplicated vertices still connect) between two planar faces
+// that turn convexly by at least kMinTurn, and free borders of faces.
+constexpr double kMinTurn = 10.0 * kPi / 180.0;
+
+std::vector<Edge> extract_edges(const TraceScene::Shape& s, const std::vector<std::string>& object_names) {
+  // Vertex ids by position on a 0.1 mm grid.
+  std::map<std::array<long long, 3>, std::uint32_t> grid;
+  std::vector<std::uint32_t> canon(s.vertices.size());
+  for (std::size_t i = 0; i < s.vertices.size(); ++i) {
+    std::array<long long, 3> key;
+    for (int k = 0; k < 3; ++k) key[k] = std::llround(s.vertices[i][k] * 1e4);
+    canon[i] = grid.try_emplace(key, static_cast<std::uint32_t>(i)).first->second;
+  }
+  struct Side {
+    std::uint32_t tri;
+    std::uint32_t face;
+    std::uint32_t third;  // vertex opposite the edge
+  };
+  std::map<std::pair<std::uint32_t, std::uint32_t>, std::vector<Side>> sides;
+  for (std::uint32_t t = 0; t < s.triangles.size(); ++t) {
+    const auto& tri = s.triangles[t];
+    for (int k = 0; k < 3; ++k) {
+      std::uint32_t u = canon[tri[k]], v = canon[tri[(k + 1) % 3]];
+      if (u == v) continue;
+      if (u > v) std::swap(u, v);
+      sides[{u, v}].push_back(Side{t, s.tri_face[t], tri[(k + 2) % 3]});
+    }
+  }
+  auto is_floor = [&](std::uint32_t f) { return s.face_plane[f].normal[2] < -0.9; };
+  auto is_ground = [&](std::uint32_t f) {
+    const auto o = s.face_object[f];
+    return o < object_names.size() && object_names[o] == "ground";
+  };
+  // Direction from the edge into the face of `side`, perpendicular to the edge.
+  auto inward = [&](const Vec3& p, const Vec3& dir, const Side& side) {
+    const Vec3 w = s.vertices[side.third] - p;
+    return normalize(w - dot(w, dir) * dir);
+  };
+  std::vector<Edge> pieces;
+  for (const auto& [uv, list] : sides) {
+    const Vec3 p = s.vertices[uv.first], q = s.vertices[uv.second];
+    if (norm(q - p) < 1e-6) continue;
+    const Vec3 dir = normalize(q - p);
+    Edge e;
+    if (list.size() == 1) {
+      const std::uint32_t f = list[0].face;
+      if (is_ground(f) || is_floor(f)) continue;
+      e.face0 = e.face_n = FaceRef{0, f};
+      e.t0 = inward(p, dir, list[0]);
+      e.n0 = s.face_plane[f].normal;
+      e.n = 2;
+    } else if (list.size() == 2 && list[0].face != list[1].face) {
+      const Side &A = list[0], &B = list[1];
+      if (is_floor(A.face) || is_floor(B.face) || is_ground(A.face) || is_ground(B.face)) continue;
+      const Vec3 ta = inward(p, dir, A), tb = inward(p, dir, B);
+      const Vec3 na = s.face_plane[A.face].normal, nb = s.face_plane[B.face].normal;
+      double ext = std::atan2(dot(tb, na), dot(tb, ta));
+      if (ext <= 0) ext += 2 * kPi;
+      if (ext < kPi + kMinTurn || ext > 2 * kPi - 1e-9) continue;  // concave, flat or a fold
+      // Face n's normal must point into the exterior (at angle ext - pi/2):
+      // meshes whose windings disagree have no well-defined outside here.
+      const Vec3 expect = std::cos(ext - kPi / 2) * ta + std::sin(ext - kPi / 2) * na;
+      if (dot(nb, expect) < 0.5) continue;
+      e.face0 = FaceRef{0, A.face};
+      e.face_n = FaceRef{0, B.face};
+      e.t0 = ta;
+      e.n0 = na;
+      e.n = ext / kPi;
+    } else {
+      continue;  // inside a planar face, or non-manifold
+    }
+    e.e = normalize(cross(e.t0, e.n0));
+    const bool forward = dot(e.e, dir) > 0;
+    e.a = forward ? p : q;
+    e.b = forward ? q : p;
+    e.object = s.face_object[e.face0.face];
+    e.material0 = s.face_material[e.face0.face];
+    e.material_n = s.face_material[e.face_n.face];
+    pieces.push_back(e);
+  }
+  // Merge collinear pieces of the same face pair, so a diffraction point on
+  // the seam of two triangles is found once.
+  std::sort(pieces.begin(), pieces.end(), [](const Edge& x, const Edge& y) {
+    if (x.face0 != y.face0) return x.face0 < y.face0;
+    if (x.face_n != y.face_n) return x.face_n < y.face_n;
+    return dot(x.a, x.e) < dot(y.a, y.e);
+  });
+  std::vector<Edge> edges;
+  for (const auto& e : pieces) {
+    if (!edges.empty()) {
+      Edge& last = edges.back();
+      const Vec3 w = e.a - last.a;
+      const double off = norm(w - dot(w, last.e) * last.e);
+      if (last.face0 == e.face0 && last.face_n == e.face_n && dot(e.e, last.e) > 1 - 1e-9 && off < 1e-4 &&
+          dot(e.a - last.b, last.e) < 1e-4) {
+        if (dot(e.b - last.b, last.e) > 0) last.b = e.b;
+        continue;
+      }
+    }
+    edges.push_back(e);
+  }
+  return edges;
+}
+
+}  // namespace
+
 TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_unique<Impl>()) {
   auto& d = *impl_;
   d.device = rtcNewDevice("verbose=0");
@@ -166,6 +278,7 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   build_shape(d.world, static_scene, d.device, d.origin,
               [this](const std::string& m) { return material_index(m); }, 0);
   for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
+  d.edges = extract_edges(d.world, d.static_objects);
 
   d.top = rtcNewScene(d.device);
   rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST));
@@ -339,6 +452,8 @@ std::vector<std::string> TraceScene::object_names() const {
 std::uint32_t TraceScene::static_object_count() const {
   return static_cast<std::uint32_t>(impl_->static_objects.size());
 }
+
+const std::vector<Edge>& TraceScene::edges() const { return impl_->edges; }
 
 meshkit::Bounds TraceScene::static_bounds() const { return impl_->bounds; }
 std::size_t TraceScene::static_triangle_count() const { return impl_->world.triangles.size(); }

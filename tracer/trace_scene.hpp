@@ -39,6 +39,22 @@ struct Hit {
   FaceRef face;
 };
 
+// A diffracting edge of the static scene: a wedge where two planar faces
+// meet at a convex angle (building corners, roof edges), or the free border
+// of a face (a thin screen, n = 2). Exterior angle n pi, 1 < n <= 2. Frame:
+// t0 lies in face 0, perpendicular to the edge, pointing from the edge into
+// the face; n0 is face 0's outward normal; the edge direction e = t0 x n0
+// runs from a to b. Angles around the edge are measured from t0 towards n0,
+// so the exterior is phi in [0, n pi] and face n lies at phi = n pi.
+struct Edge {
+  Vec3 a{0, 0, 0}, b{0, 0, 0};
+  Vec3 e{0, 0, 1}, t0{1, 0, 0}, n0{0, 1, 0};
+  double n = 1.5;
+  FaceRef face0, face_n;  // face_n == face0 for a free border
+  std::uint32_t object = 0;
+  std::uint16_t material0 = 0, material_n = 0;
+};
+
 // Where a vehicle is in the current frame.
 struct VehiclePose {
   std::string id;
@@ -102,6 +118,12 @@ class TraceScene {
   std::vector<std::string> object_names() const;
   std::uint32_t static_object_count() const;
   std::uint32_t vehicle_object(std::size_t v) const { return static_object_count() + static_cast<std::uint32_t>(v); }
+
+  // The static scene's diffracting edges, extracted once when the scene is
+  // built: edges between planar faces that turn by at least 10 degrees
+  // (collinear pieces merged), and free borders of faces; edges touching a
+  // downward-facing face (building floors) and ground borders are left out.
+  const std::vector<Edge>& edges() const;
 
   meshkit::Bounds static_bounds() const;
   std::size_t static_triangle_count() const;
