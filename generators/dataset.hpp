@@ -52,6 +52,7 @@ struct LinkRecord {
   double first_delay_s = 0;      // 0 when no path
   float rms_delay_spread_s = 0;
   std::uint32_t path_count = 0;  // this link's paths follow the previous links' paths in FrameRecord::paths
+  std::uint32_t paths_below_threshold = 0;  // found but dropped: tracer.path_threshold_db below the strongest
 };
 
 struct PathRecord {

@@ -13,6 +13,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
+#include <cstdio>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -244,6 +246,7 @@ class Validator {
               problem(label + " is \"" + v + "\", expected one of " + allowed.dump());
           }
           if (name == "schema_version") {
+            file_version_ = v;
             const auto major = major_version(v);
             if (!major)
               problem(label + " \"" + v + "\" is not a MAJOR.MINOR.PATCH version");
@@ -270,6 +273,14 @@ class Validator {
     }
   }
   std::map<std::string, std::uint64_t> attr_values_;
+  std::string file_version_;  // the file's schema_version
+
+  // MAJOR.MINOR.PATCH as a comparable triple (zeros when unparsable).
+  static std::array<int, 3> version_triple(const std::string& v) {
+    std::array<int, 3> t{0, 0, 0};
+    std::sscanf(v.c_str(), "%d.%d.%d", &t[0], &t[1], &t[2]);
+    return t;
+  }
 
   void check_group(const nlohmann::json& g) {
     const std::string name = g.at("name");
@@ -292,6 +303,10 @@ class Validator {
     const std::string name = d.at("name");
     const std::string p = path_of(g, d);
     if (!has_link(gid, name)) {
+      // Added in a later minor version: files written before it lack it.
+      if (d.contains("since") &&
+          version_triple(file_version_) < version_triple(d.at("since").get<std::string>()))
+        return;
       problem(p + ": dataset missing");
       return;
     }

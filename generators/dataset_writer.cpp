@@ -32,7 +32,7 @@ struct DatasetWriter::Impl {
   Column *f_time, *f_node_offset, *f_node_count, *f_link_offset, *f_link_count;
   Column *s_node, *s_position, *s_velocity, *s_heading;
   Column *l_frame, *l_tx, *l_rx, *l_los, *l_flags, *l_blockers, *l_gain_c, *l_gain_i, *l_first_delay, *l_rms,
-      *l_path_count, *l_path_offset;
+      *l_path_count, *l_path_offset, *l_below;
   Column *p_a, *p_tau, *p_aod, *p_aoa, *p_doppler, *p_icount, *p_ioffset;
   Column *i_type, *i_object, *i_point;
   Column* c_h = nullptr;
@@ -81,6 +81,7 @@ struct DatasetWriter::Impl {
     l_first_delay = column("links", "first_delay_s", Dtype::f64);
     l_rms = column("links", "rms_delay_spread_s", Dtype::f32);
     l_path_count = column("links", "path_count", Dtype::u32);
+    l_below = column("links", "paths_below_threshold", Dtype::u32);
     l_path_offset = column("links", "path_offset", Dtype::u64);
 
     p_a = column("paths", "a", Dtype::c64);
@@ -171,7 +172,7 @@ struct DatasetWriter::Impl {
     }
 
     for (Column* c : {l_frame, l_tx, l_rx, l_los, l_flags, l_blockers, l_gain_c, l_gain_i, l_first_delay, l_rms,
-                      l_path_count, l_path_offset})
+                      l_path_count, l_path_offset, l_below})
       c->reserve_rows(fr.links.size());
     std::uint64_t path_offset = path_count;
     for (const auto& l : fr.links) {
@@ -186,6 +187,7 @@ struct DatasetWriter::Impl {
       l_first_delay->put(l.first_delay_s);
       l_rms->put(l.rms_delay_spread_s);
       l_path_count->put(l.path_count);
+      l_below->put(l.paths_below_threshold);
       l_path_offset->put(path_offset);
       path_offset += l.path_count;
     }

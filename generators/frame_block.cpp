@@ -20,7 +20,7 @@ namespace {
 
 constexpr std::size_t kMagicBytes = 8;
 constexpr std::uint64_t kNodeBytes = 4 + 3 * 8 + 4 * 4;                      // 44
-constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4;  // 36
+constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4;  // 40
 constexpr std::uint64_t kPathBytes = 4 + 4 + 8 + 4 * 4 + 4 + 1;              // 37
 constexpr std::uint64_t kInteractionBytes = 1 + 4 + 3 * 4;                   // 17
 constexpr std::uint64_t kCfrBytes = 8;
@@ -116,6 +116,7 @@ void write_frame_block(const std::filesystem::path& path, const std::vector<Fram
       o.f64(l.first_delay_s);
       o.f32(l.rms_delay_spread_s);
       o.u32(l.path_count);
+      o.u32(l.paths_below_threshold);
     }
     for (const auto& p : f.paths) {
       o.f32(p.a.real()), o.f32(p.a.imag());
@@ -204,6 +205,7 @@ std::vector<FrameRecord> read_frame_block(const std::filesystem::path& path) {
       l.first_delay_s = r.f64();
       l.rms_delay_spread_s = r.f32();
       l.path_count = r.u32();
+      l.paths_below_threshold = r.u32();
     }
     f.paths.resize(r.count(n_paths, kPathBytes, "paths"));
     for (auto& q : f.paths) {

@@ -229,6 +229,8 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
     L.first_delay_s = res.stats.first_delay_s;
     L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
     L.path_count = static_cast<std::uint32_t>(res.paths.size());
+    L.paths_below_threshold = res.dropped_threshold;
+    if (res.out_of_range) L.flags |= kLinkOutOfRange;
     for (const auto& path : res.paths) {
       if (std::norm(path.a) > strongest) {
         strongest = std::norm(path.a);

@@ -65,6 +65,8 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
                      {"n_paths", p.paths.size()},
                      {"candidates", p.candidates},
                      {"dropped_transmission_cap", p.dropped_transmission_cap},
+                     {"paths_below_threshold", p.dropped_threshold},
+                     {"out_of_range", p.out_of_range},
                      {"paths", paths}});
   }
   json node_list = json::array();
@@ -76,7 +78,11 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
            {{"rays", snap.stats.rays},
             {"candidates", snap.stats.candidates},
             {"paths", snap.stats.paths},
-            {"dropped_transmission_cap", snap.stats.dropped_transmission_cap}}}};
+            {"dropped_transmission_cap", snap.stats.dropped_transmission_cap},
+            {"paths_below_threshold", snap.stats.dropped_threshold},
+            {"out_of_range_pairs", snap.stats.out_of_range_pairs},
+            {"diffraction_paths", snap.stats.diffraction_paths},
+            {"diffuse_paths", snap.stats.diffuse_paths}}}};
 }
 
 tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {

@@ -28,7 +28,8 @@ FLAG_CACHED = 1
 FLAG_OUT_OF_RANGE = 2
 
 LINK_COLUMNS = ("frame", "tx", "rx", "los_class", "flags", "blocker_count", "gain_coherent_db",
-                "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset")
+                "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset",
+                "paths_below_threshold")  # the last one since schema 1.1.0
 
 
 def _text(value):
@@ -175,7 +176,12 @@ class ChannelDataset:
 
     def links_table(self):
         """Every /links column as a dict of numpy arrays (L,) for bulk/ML use."""
-        return {c: self._column("links/" + c) for c in LINK_COLUMNS}
+        return {c: self._column("links/" + c) for c in self.link_columns}
+
+    @property
+    def link_columns(self):
+        """The /links columns this file has (files older than schema 1.1.0 lack paths_below_threshold)."""
+        return tuple(c for c in LINK_COLUMNS if "links/" + c in self._file)
 
     # -- frames ----------------------------------------------------------------------------
     def frame(self, i):
@@ -197,7 +203,7 @@ class ChannelDataset:
             "heading_deg": f["node_states/heading_deg"][s0:s1],
             "link_index": np.arange(l0, l1, dtype=np.int64),
         }
-        for c in LINK_COLUMNS:
+        for c in self.link_columns:
             out[c] = f["links/" + c][l0:l1]
         return out
 

@@ -78,6 +78,7 @@ struct Builder {
     l.blocker_count = static_cast<std::uint16_t>(los == 0 ? 0 : los + 1);
     l.path_count = static_cast<std::uint32_t>(path_objects.size());
     const std::uint32_t li = link_counter++;
+    l.paths_below_threshold = (flags & kLinkOutOfRange) ? 0 : 7 * li + 1;
     if (path_objects.empty()) {
       l.gain_coherent_db = kNoGain;
       l.gain_incoherent_db = kNoGain;
@@ -248,7 +249,7 @@ TEST(Dataset, RoundTripEveryField) {
 
   // Root attributes.
   EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
-  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.0.0");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.1.0");
   EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
   EXPECT_EQ(str_attr(file, "/", "git_hash"), "0123456789ab");
   EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "config")), test_header().config);
@@ -318,6 +319,7 @@ TEST(Dataset, RoundTripEveryField) {
   const auto rms = read_ds<float>(file, "/links/rms_delay_spread_s", H5T_NATIVE_FLOAT);
   const auto pc = read_ds<std::uint32_t>(file, "/links/path_count", H5T_NATIVE_UINT32);
   const auto po = read_ds<std::uint64_t>(file, "/links/path_offset", H5T_NATIVE_UINT64);
+  const auto below = read_ds<std::uint32_t>(file, "/links/paths_below_threshold", H5T_NATIVE_UINT32);
   ASSERT_EQ(tx.size(), 6u);
   EXPECT_EQ(frame, x.link_frame);
   EXPECT_EQ(frame, (std::vector<std::uint32_t>{0, 0, 0, 1, 1, 2}));
@@ -336,6 +338,7 @@ TEST(Dataset, RoundTripEveryField) {
     EXPECT_EQ(rms[i], l.rms_delay_spread_s);
     EXPECT_EQ(pc[i], l.path_count);
     EXPECT_EQ(po[i], x.path_offset[i]);
+    EXPECT_EQ(below[i], l.paths_below_threshold);
   }
   EXPECT_TRUE(std::isinf(gc[2]) && gc[2] < 0);
   EXPECT_EQ(flags[2], kLinkOutOfRange);
@@ -413,7 +416,7 @@ TEST(Dataset, RoundTripEveryField) {
   EXPECT_TRUE(problems.empty()) << joined(problems);
 
   const auto info = dataset_info(file.string());
-  EXPECT_EQ(info["schema_version"], "1.0.0");
+  EXPECT_EQ(info["schema_version"], "1.1.0");
   EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
   EXPECT_EQ(info["frames"], 3);
   EXPECT_EQ(info["time_start_s"], 0.0);
@@ -554,6 +557,16 @@ TEST(Dataset, CorruptFilesAreRejected) {
     const auto problems = validate_dataset(p.string());
     EXPECT_TRUE(mentions(problems, "/paths/tau_s")) << joined(problems);
   }
+  {  // (b2) a column added in 1.1.0: required from 1.1.0 on, not in a 1.0.0 file
+    const fs::path p = copy("nobelow.h5");
+    {
+      H5 f{H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+      ASSERT_GE(H5Ldelete(f.id, "/links/paths_below_threshold", H5P_DEFAULT), 0);
+    }
+    EXPECT_TRUE(mentions(validate_dataset(p.string()), "/links/paths_below_threshold"));
+    set_str_attr(p, "schema_version", "1.0.0");
+    EXPECT_TRUE(validate_dataset(p.string()).empty()) << joined(validate_dataset(p.string()));
+  }
   {  // (c) an unsupported major version
     const fs::path p = copy("v2.h5");
     set_str_attr(p, "schema_version", "2.0.0");
@@ -678,6 +691,7 @@ void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecor
       EXPECT_EQ(bits(p.first_delay_s), bits(q.first_delay_s));
       EXPECT_EQ(bits(p.rms_delay_spread_s), bits(q.rms_delay_spread_s));
       EXPECT_EQ(p.path_count, q.path_count);
+      EXPECT_EQ(p.paths_below_threshold, q.paths_below_threshold);
     }
     ASSERT_EQ(x.paths.size(), y.paths.size());
     for (std::size_t i = 0; i < x.paths.size(); ++i) {
@@ -726,7 +740,7 @@ TEST(FrameBlock, RoundTripIsExact) {
   write_frame_block(p, frames);
   EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
   const std::string bytes = read_bytes(p);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK1\n"));
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK2\n"));
   const auto back = read_frame_block(p);
   expect_same(frames, back);
   EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));

@@ -5,6 +5,7 @@
 #include <tbb/global_control.h>
 
 #include <cmath>
+#include <map>
 
 #include "generators/sweep.hpp"
 #include "meshkit/vehicle_model.hpp"
@@ -294,4 +295,52 @@ TEST(Sweep, VehicleInteractionsNameTheNodeAndThreadsDoNotMatter) {
     EXPECT_EQ(one[f].nodes.front().node, 7u);
   }
   EXPECT_TRUE(saw_vehicle);
+}
+
+// Issue 5's budget rules: links beyond the sensitivity's free-space reach are
+// labelled out of range without paths; paths 60 dB below a link's strongest
+// are dropped and counted, and tracing with the threshold off finds exactly
+// the kept plus the dropped ones.
+TEST(Sweep, OutOfRangeLinksAndThresholdDropsAreRecorded) {
+  Canyon c;
+  generators::SweepOptions opt;
+  opt.cache = CacheMode::none;
+  tracer::RadioConfig radio;
+  radio.sensitivity_dbm = -44;  // free-space reach ~40 m with 30 dBm and the 6 dB margin
+  const double range = tracer::max_range_m(tracer_config(), radio);
+  ASSERT_NEAR(range, 0.0508 / (4 * M_PI) * std::pow(10.0, (30 + 44 + 6) / 20.0), 0.5);
+  auto cfg_off = tracer_config();
+  cfg_off.path_threshold_db = 0;
+  cfg_off.range_margin_db = 1e6;
+  generators::Sweep near(c.scene, tracer_config(), radio, opt, {});
+  generators::Sweep all(c.scene, cfg_off, radio, opt, {});
+  std::size_t out_of_range = 0, in_range = 0, dropped = 0;
+  for (int f = 0; f < 3; ++f) {
+    const FrameRecord a = near.step(f, 0.1 * f, scenario(c, f));
+    const FrameRecord b = all.step(f, 0.1 * f, scenario(c, f));
+    ASSERT_EQ(a.links.size(), b.links.size());
+    std::map<std::uint32_t, tracer::Vec3> pos;
+    for (const auto& s : a.nodes) pos[s.node] = {s.x, s.y, s.z};
+    for (std::size_t l = 0; l < a.links.size(); ++l) {
+      const auto &la = a.links[l], &lb = b.links[l];
+      const double d = tracer::norm(tracer::operator-(pos[la.tx], pos[la.rx]));  // bumper points: antennas are within a few metres
+      EXPECT_EQ(la.los_class, lb.los_class) << "the label is classified either way";
+      if (la.flags & generators::kLinkOutOfRange) {
+        ++out_of_range;
+        EXPECT_GT(d, range - 10);
+        EXPECT_EQ(la.path_count, 0u);
+        EXPECT_EQ(la.paths_below_threshold, 0u);
+        EXPECT_TRUE(std::isinf(la.gain_incoherent_db));
+      } else {
+        ++in_range;
+        EXPECT_LT(d, range + 10);
+        EXPECT_EQ(lb.paths_below_threshold, 0u);
+        EXPECT_EQ(la.path_count + la.paths_below_threshold, lb.path_count);
+        dropped += la.paths_below_threshold;
+      }
+    }
+  }
+  EXPECT_GT(out_of_range, 0u);
+  EXPECT_GT(in_range, 0u);
+  EXPECT_GT(dropped, 0u) << "the canyon has through-building paths far below the direct one";
 }
