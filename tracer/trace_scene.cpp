@@ -89,6 +89,13 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
   std::map<std::pair<std::size_t, std::uint32_t>, std::uint32_t> face_index;
   for (std::size_t mi = 0; mi < scene.meshes.size(); ++mi) {
     const auto& m = scene.meshes[mi];
+    // A non-finite vertex would make the bounds, hence Embree's origin and
+    // every tolerance, infinite and lose every path without a word.
+    for (std::size_t v = 0; v < m.vertices.size(); ++v)
+      for (double c : m.vertices[v])
+        if (!std::isfinite(c))
+          throw std::invalid_argument(s.name + ": mesh '" + m.name + "' (material " + m.material + "): vertex " +
+                                      std::to_string(v) + " is not finite");
     const std::uint16_t mat = material_index(m.material);
     std::vector<std::uint32_t> faces = m.triangle_face;
     if (faces.size() != m.triangles.size()) faces = meshkit::group_planar_faces(m.vertices, m.triangles, 0);
