@@ -53,7 +53,8 @@ struct Scattering {
   double xpd = 0;  // cross-polarised fraction K_x of the scattered power, [0, 1]
   ScatteringLobe lobe = ScatteringLobe::directive;
   int alpha_r = 4, alpha_i = 4;  // lobe widths (integers 1..20)
-  double lambda_r = 0.75;        // backscatter: share of the specular lobe, [0, 1]
+  double lambda_r = 0.75;        // backscatter: weight of the specular lobe against the back lobe, [0, 1]
+                                 // (both normalised together, as in Degli-Esposti)
 };
 
 // Default roughness by material: building facades (concrete, brick) S = 0.4

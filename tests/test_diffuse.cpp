@@ -1,0 +1,519 @@
+// Closed-form validation of diffuse scattering (effective roughness model,
+// Degli-Esposti et al. 2007): the lobe integrals and scattering patterns
+// against quadrature over the hemisphere, the diffuse power from a plate
+// against the bistatic radar-equation integral over its surface (own 2D
+// quadrature), the R^2 + S^2 = 1 energy partition of the specular path, the
+// switch and thread-count determinism. Reflection coefficients in the
+// references come from tracer::slab_coefficients (validated in test_em).
+#include <gtest/gtest.h>
+#include <tbb/global_control.h>
+
+#include <algorithm>
+#include <cmath>
+#include <complex>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <random>
+#include <vector>
+
+#include "tracer_fixtures.hpp"
+
+using namespace raysweep;
+using namespace raysweep::test;
+using cd = std::complex<double>;
+using tracer::Vec3;
+using tracer::operator+;
+using tracer::operator-;
+using tracer::operator*;
+
+namespace {
+
+constexpr double kC = 299792458.0, kPi = 3.14159265358979323846;
+constexpr double kF = 5.9e9;
+const double kLambda = kC / kF;
+constexpr double kDeg = kPi / 180;
+
+// Gauss-Legendre nodes on [-1, 1] by Newton's iteration on P_n.
+struct GaussLegendre {
+  std::vector<double> x, w;
+  explicit GaussLegendre(int n) {
+    x.resize(n);
+    w.resize(n);
+    for (int i = 0; i < n; ++i) {
+      double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0;
+      for (int it = 0; it < 100; ++it) {
+        double p0 = 1, p1 = z;
+        for (int j = 2; j <= n; ++j) {
+          const double p2 = ((2.0 * j - 1) * z * p1 - (j - 1.0) * p0) / j;
+          p0 = p1;
+          p1 = p2;
+        }
+        dp = n * (z * p1 - p0) / (z * z - 1);
+        const double dz = p1 / dp;
+        z -= dz;
+        if (std::fabs(dz) < 1e-16) break;
+      }
+      x[i] = z;
+      w[i] = 2 / ((1 - z * z) * dp * dp);
+    }
+  }
+};
+const GaussLegendre& gl20() {
+  static const GaussLegendre g(20);
+  return g;
+}
+// Nodes and weights of a composite 20-point rule over [a, b].
+void composite(double a, double b, int panels, std::vector<double>& x, std::vector<double>& w) {
+  const auto& g = gl20();
+  x.clear();
+  w.clear();
+  const double h = (b - a) / panels;
+  for (int p = 0; p < panels; ++p)
+    for (std::size_t i = 0; i < g.x.size(); ++i) {
+      x.push_back(a + (p + 0.5) * h + 0.5 * h * g.x[i]);
+      w.push_back(0.5 * h * g.w[i]);
+    }
+}
+
+// Integral over the hemisphere around unit `n` of f(direction): Gauss-Legendre
+// in the polar angle, trapezoid in azimuth (exact for trigonometric
+// polynomials of degree < m).
+double hemisphere(const Vec3& n, const std::function<double(const Vec3&)>& f, int polar_panels = 4, int m = 256) {
+  const Vec3 t1 = tracer::any_perpendicular(n), t2 = tracer::cross(n, t1);
+  std::vector<double> th, wt;
+  composite(0, kPi / 2, polar_panels, th, wt);
+  double sum = 0;
+  for (std::size_t i = 0; i < th.size(); ++i) {
+    const double st = std::sin(th[i]), ct = std::cos(th[i]);
+    double ring = 0;
+    for (int k = 0; k < m; ++k) {
+      const double ph = 2 * kPi * k / m;
+      ring += f(st * std::cos(ph) * t1 + st * std::sin(ph) * t2 + ct * n);
+    }
+    sum += wt[i] * st * ring * (2 * kPi / m);
+  }
+  return sum;
+}
+
+// Degli-Esposti's F_alpha(theta): integral over the hemisphere of
+// ((1 + cos psi)/2)^alpha, psi the angle to a direction theta from the normal.
+double lobe_integral_ref(int alpha, double theta) {
+  const Vec3 n{0, 0, 1}, d{std::sin(theta), 0, std::cos(theta)};
+  return hemisphere(n, [&](const Vec3& k) { return std::pow((1 + tracer::dot(k, d)) / 2, alpha); });
+}
+
+// F_alpha on a fine theta grid (linear interpolation: relative error < 1e-7).
+struct LobeTable {
+  int alpha;
+  std::vector<double> v;
+  static constexpr int kN = 2000;
+  explicit LobeTable(int a) : alpha(a), v(kN + 1) {
+    for (int i = 0; i <= kN; ++i) v[i] = lobe_integral_ref(a, kPi / 2 * i / kN);
+  }
+  double operator()(double theta) const {
+    const double u = std::clamp(theta / (kPi / 2), 0.0, 1.0) * kN;
+    const int i = std::min(kN - 1, static_cast<int>(u));
+    return v[i] + (u - i) * (v[i + 1] - v[i]);
+  }
+};
+
+Vec3 theta_hat(const Vec3& d) {
+  const double th = std::acos(std::clamp(d[2], -1.0, 1.0)), ph = std::atan2(d[1], d[0]);
+  return {std::cos(th) * std::cos(ph), std::cos(th) * std::sin(ph), -std::sin(th)};
+}
+
+double db(double x) { return 10 * std::log10(x); }
+
+// A horizontal plate z = 0 over [-h, h]^2 (normal +z), no ground.
+meshkit::Scene plate_scene(double h, const std::string& material) {
+  meshkit::Scene s;
+  add_quad(s, material, "plate", {-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0});
+  return s;
+}
+
+// Expected diffuse power (|a|^2 summed) from the plate by the bistatic radar
+// equation, V-polarised isotropic antennas, K_x = 1/2 (G_r_eff = G_r / 2):
+// int S^2 f |E_refl|^2 (1/2) lambda^2 cos(theta_i) / (16 pi^2 r_i^2 r_s^2) dS,
+// |E_refl|^2 = |R_TE|^2 |E.e_s|^2 + |R_TM|^2 |E.e_p|^2 with E = theta_hat.
+struct PlateIntegral {
+  double h = 2;
+  Vec3 tx, rx;
+  double s = 1;
+  const tracer::RadioMaterial* material = nullptr;
+  std::function<double(const Vec3& k_in, const Vec3& k_out, double theta_i)> pattern;
+  int panels = 10;
+  double operator()() const {
+    std::vector<double> x, w;
+    composite(-h, h, panels, x, w);
+    const Vec3 n{0, 0, 1};
+    double sum = 0;
+    for (std::size_t i = 0; i < x.size(); ++i)
+      for (std::size_t j = 0; j < x.size(); ++j) {
+        const Vec3 p{x[i], x[j], 0};
+        const Vec3 vi = p - tx, vs = rx - p;
+        const double ri = tracer::norm(vi), rs = tracer::norm(vs);
+        const Vec3 k_in = (1 / ri) * vi, k_s = (1 / rs) * vs;
+        const double cos_i = -tracer::dot(k_in, n);
+        const auto r = tracer::slab_coefficients(*material, cos_i).r;
+        const Vec3 es = tracer::normalize(tracer::cross(k_in, n)), ep = tracer::cross(es, k_in);
+        const Vec3 e = theta_hat(k_in);
+        const double refl = std::norm(r.te) * std::pow(tracer::dot(e, es), 2) +
+                            std::norm(r.tm) * std::pow(tracer::dot(e, ep), 2);
+        const double f = pattern(k_in, k_s, std::acos(cos_i));
+        sum += w[i] * w[j] * s * s * f * refl * 0.5 * kLambda * kLambda * cos_i /
+               (16 * kPi * kPi * ri * ri * rs * rs);
+      }
+    return sum;
+  }
+};
+
+// The same integrand summed over the rays of a Fibonacci lattice from tx that
+// hit the plate (dOmega = 4 pi / N): the discretisation a shoot-and-bounce
+// estimate carries, to show that the Monte Carlo tolerance is honest.
+double plate_lattice_sum(const PlateIntegral& pi, int rays) {
+  const auto dirs = tracer::fibonacci_sphere(rays);
+  const Vec3 n{0, 0, 1};
+  double sum = 0;
+  for (const auto& d : dirs) {
+    if (d[2] >= 0) continue;
+    const double t = -pi.tx[2] / d[2];
+    const Vec3 p = pi.tx + t * d;
+    if (std::fabs(p[0]) > pi.h || std::fabs(p[1]) > pi.h) continue;
+    const Vec3 vs = pi.rx - p;
+    const double rs = tracer::norm(vs);
+    const Vec3 k_s = (1 / rs) * vs;
+    const double cos_i = -d[2];
+    const auto r = tracer::slab_coefficients(*pi.material, cos_i).r;
+    const Vec3 es = tracer::normalize(tracer::cross(d, n)), ep = tracer::cross(es, d);
+    const Vec3 e = theta_hat(d);
+    const double refl =
+        std::norm(r.te) * std::pow(tracer::dot(e, es), 2) + std::norm(r.tm) * std::pow(tracer::dot(e, ep), 2);
+    const double f = pi.pattern(d, k_s, std::acos(cos_i));
+    sum += pi.s * pi.s * f * refl * 0.5 * kLambda * kLambda * (4 * kPi / rays) / (16 * kPi * kPi * rs * rs);
+  }
+  return sum;
+}
+
+struct Powers {
+  double diffuse = 0;          // sum of |a|^2 over paths ending in a diffuse interaction
+  std::size_t n_diffuse = 0;
+  const tracer::Path* specular = nullptr;  // the single-reflection specular path, if any
+  const tracer::Path* direct = nullptr;
+};
+Powers powers(const tracer::PairResult& p) {
+  Powers out;
+  for (const auto& path : p.paths) {
+    if (path.interactions.empty()) {
+      out.direct = &path;
+    } else if (path.interactions.back().type == tracer::InteractionType::diffuse) {
+      out.diffuse += std::norm(path.a);
+      ++out.n_diffuse;
+    } else if (path.interactions.size() == 1 && path.interactions[0].type == tracer::InteractionType::specular) {
+      out.specular = &path;
+    }
+  }
+  return out;
+}
+
+tracer::TracerConfig diffuse_config(int rays) {
+  tracer::TracerConfig c;
+  c.max_depth = 1;
+  c.diffuse = true;
+  c.rays_per_source = rays;
+  c.path_threshold_db = 0;
+  return c;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// 7. Lobes.
+
+TEST(Diffuse, LobeIntegralMatchesHemisphereQuadrature) {
+  // The reference itself: F_0 = 2 pi, and F_1(0) = pi + pi / 2... by hand:
+  // int ((1 + cos t)/2) dOmega = pi + pi/2 at normal incidence.
+  EXPECT_NEAR(lobe_integral_ref(0, 0.3), 2 * kPi, 1e-12);
+  EXPECT_NEAR(lobe_integral_ref(1, 0), 1.5 * kPi, 1e-12);
+  for (int alpha : {1, 2, 4, 8, 20})
+    for (double theta_deg : {0.0, 30.0, 60.0, 85.0}) {
+      const double expect = lobe_integral_ref(alpha, theta_deg * kDeg);
+      const double got = tracer::lobe_integral(alpha, theta_deg * kDeg);
+      EXPECT_NEAR(got / expect, 1.0, 1e-4) << "alpha " << alpha << " theta " << theta_deg << ": " << got << " vs "
+                                           << expect;
+    }
+}
+
+TEST(Diffuse, ScatteringPatternsAreNormalisedAndOneSided) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  auto random_unit = [&] {
+    for (;;) {
+      const Vec3 v{u(rng), u(rng), u(rng)};
+      if (tracer::norm(v) > 0.2 && tracer::norm(v) < 1) return tracer::normalize(v);
+    }
+  };
+  std::vector<tracer::Scattering> lobes;
+  {
+    tracer::Scattering l;
+    l.s = 0.5;
+    l.lobe = tracer::ScatteringLobe::lambertian;
+    lobes.push_back(l);
+    for (int a : {1, 4, 10, 20}) {
+      tracer::Scattering d;
+      d.s = 0.5;
+      d.lobe = tracer::ScatteringLobe::directive;
+      d.alpha_r = a;
+      lobes.push_back(d);
+    }
+    for (double lr : {0.0, 0.3, 0.75, 1.0}) {
+      tracer::Scattering b;
+      b.s = 0.5;
+      b.lobe = tracer::ScatteringLobe::backscatter;
+      b.alpha_r = 6;
+      b.alpha_i = 3;
+      b.lambda_r = lr;
+      lobes.push_back(b);
+    }
+  }
+  for (int trial = 0; trial < 6; ++trial) {
+    const Vec3 n_any = random_unit();
+    Vec3 k_in = random_unit();
+    if (trial == 0) k_in = -1.0 * n_any;  // normal incidence
+    if (std::fabs(tracer::dot(k_in, n_any)) < 0.05) continue;
+    // The front side: where the wave comes from.
+    const Vec3 front = tracer::dot(k_in, n_any) < 0 ? n_any : -1.0 * n_any;
+    const double cos_i = -tracer::dot(k_in, front), theta_i = std::acos(std::clamp(cos_i, 0.0, 1.0));
+    const Vec3 spec = k_in + (2 * cos_i) * front;
+    for (const auto& sc : lobes) {
+      const double total = hemisphere(front, [&](const Vec3& k) { return tracer::scattering_pattern(sc, k_in, k, n_any); });
+      EXPECT_NEAR(total, 1.0, 1e-4) << tracer::scattering_lobe_name(sc.lobe) << " alpha_r " << sc.alpha_r
+                                    << " lambda_r " << sc.lambda_r << " theta_i " << theta_i / kDeg;
+      // Nothing behind the surface; the normal's orientation does not matter.
+      for (int k = 0; k < 20; ++k) {
+        Vec3 out = random_unit();
+        const double c = tracer::dot(out, front);
+        if (c < 0) EXPECT_EQ(tracer::scattering_pattern(sc, k_in, out, n_any), 0.0);
+        if (c < 0) out = -1.0 * out;
+        const double cs = tracer::dot(out, front);
+        const double f = tracer::scattering_pattern(sc, k_in, out, n_any);
+        EXPECT_DOUBLE_EQ(f, tracer::scattering_pattern(sc, k_in, out, -1.0 * n_any));
+        if (sc.lobe == tracer::ScatteringLobe::lambertian) EXPECT_NEAR(f, cs / kPi, 1e-12);
+        if (sc.lobe == tracer::ScatteringLobe::directive) {
+          const double expect =
+              std::pow((1 + tracer::dot(out, spec)) / 2, sc.alpha_r) / lobe_integral_ref(sc.alpha_r, theta_i);
+          EXPECT_NEAR(f / expect, 1.0, 1e-6) << "alpha_r " << sc.alpha_r;
+        }
+        EXPECT_GE(f, 0.0);
+      }
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------
+// 8. Lambertian plate against the bistatic radar equation.
+
+TEST(Diffuse, LambertianPlateMatchesRadarEquation) {
+  const auto scene_def = plate_scene(2, "metal");
+  tracer::TraceScene scene(scene_def);
+  const Vec3 tx{-3, 0, 5}, rx{4, 1, 6};
+  const auto metal = tracer::radio_material("metal", kF);
+  // PEC-like: |Gamma| = 1 within 1e-3 over the plate's angles (0 .. 50 deg).
+  for (double deg = 0; deg <= 50; deg += 5) {
+    const auto r = tracer::slab_coefficients(metal, std::cos(deg * kDeg)).r;
+    EXPECT_NEAR(std::abs(r.te), 1.0, 1e-3);
+    EXPECT_NEAR(std::abs(r.tm), 1.0, 1e-3);
+  }
+  PlateIntegral ref;
+  ref.h = 2;
+  ref.tx = tx;
+  ref.rx = rx;
+  ref.s = 1;
+  ref.material = &metal;
+  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  const double expect = ref();
+  const int rays = 1 << 18;
+  const double lattice = plate_lattice_sum(ref, rays);
+  std::printf("lambertian plate: radar integral %.6e, lattice sum (N = %d) %.6e (%+.3f %%)\n", expect, rays, lattice,
+              100 * (lattice / expect - 1));
+  ASSERT_NEAR(lattice / expect, 1.0, 0.01) << "the lattice discretisation alone should be within 1 %";
+
+  auto cfg = diffuse_config(rays);
+  tracer::MaterialOverride mo;
+  mo.scattering_coefficient = 1.0;
+  mo.xpd = 0.5;
+  mo.lobe = tracer::ScatteringLobe::lambertian;
+  cfg.materials["metal"] = mo;
+  const auto snap = tracer::trace_snapshot(scene, {node("tx", tx), node("rx", rx)}, cfg, {});
+  ASSERT_EQ(snap.pairs.size(), 1u);
+  const auto p = powers(snap.pairs[0]);
+  std::printf("lambertian plate: traced %.6e in %zu diffuse paths (%+.3f %%)\n", p.diffuse, p.n_diffuse,
+              100 * (p.diffuse / expect - 1));
+  EXPECT_GT(p.n_diffuse, 0u);
+  EXPECT_NEAR(p.diffuse / expect, 1.0, 0.03);
+  EXPECT_EQ(snap.stats.diffuse_paths, p.n_diffuse);
+  // S = 1: nothing is left for the specular reflection.
+  if (p.specular) EXPECT_EQ(std::norm(p.specular->a), 0.0);
+  // The direct path is untouched.
+  ASSERT_TRUE(p.direct);
+  const double d = tracer::norm(rx - tx);
+  EXPECT_NEAR(std::abs(p.direct->a), kLambda / (4 * kPi * d), 1e-9 * kLambda / (4 * kPi * d));
+  // Diffuse paths: scattered on the plate, later than the direct path.
+  const auto names = scene.object_names();
+  for (const auto& path : snap.pairs[0].paths) {
+    if (path.interactions.empty() || path.interactions.back().type != tracer::InteractionType::diffuse) continue;
+    ASSERT_EQ(path.interactions.size(), 1u);
+    EXPECT_EQ(names.at(path.interactions[0].object), "plate");
+    const Vec3 q = path.interactions[0].point;
+    EXPECT_NEAR(q[2], 0.0, 1e-9);
+    EXPECT_LE(std::fabs(q[0]), 2 + 1e-9);
+    EXPECT_LE(std::fabs(q[1]), 2 + 1e-9);
+    EXPECT_GT(path.tau_s, d / kC);
+    // Within the delay span of the plate.
+    EXPECT_LT(path.tau_s, (tracer::norm(Vec3{-2, -2, 0} - tx) + tracer::norm(Vec3{-2, -2, 0} - rx) + 10) / kC);
+  }
+}
+
+TEST(Diffuse, LambertianConcretePlateMatchesRadarEquation) {
+  // A lossy slab: R_TE and R_TM differ in magnitude and phase, so the
+  // reflected field is elliptical; with K_x = 1/2 the received power is still
+  // G_r / 2 times |E_refl|^2 (co + cross = everything).
+  const auto scene_def = plate_scene(2, "concrete");
+  tracer::TraceScene scene(scene_def);
+  const Vec3 tx{-3, 0, 5}, rx{4, 1, 6};
+  const auto concrete = tracer::radio_material("concrete", kF);
+  PlateIntegral ref;
+  ref.h = 2;
+  ref.tx = tx;
+  ref.rx = rx;
+  ref.s = 1;
+  ref.material = &concrete;
+  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  const double expect = ref();
+  const int rays = 1 << 18;
+  const double lattice = plate_lattice_sum(ref, rays);
+  ASSERT_NEAR(lattice / expect, 1.0, 0.01);
+  auto cfg = diffuse_config(rays);
+  tracer::MaterialOverride mo;
+  mo.scattering_coefficient = 1.0;
+  mo.xpd = 0.5;
+  mo.lobe = tracer::ScatteringLobe::lambertian;
+  cfg.materials["concrete"] = mo;
+  const auto snap = tracer::trace_snapshot(scene, {node("tx", tx), node("rx", rx)}, cfg, {});
+  const auto p = powers(snap.pairs[0]);
+  std::printf("lambertian concrete plate: radar integral %.6e, lattice %.6e, traced %.6e (%+.3f %%)\n", expect,
+              lattice, p.diffuse, 100 * (p.diffuse / expect - 1));
+  EXPECT_NEAR(p.diffuse / expect, 1.0, 0.03);
+}
+
+// ---------------------------------------------------------------------------
+// 9. Energy partition and a directive lobe.
+
+TEST(Diffuse, SpecularKeepsOneMinusSSquaredAndDirectiveLobeMatchesIntegral) {
+  const auto scene_def = plate_scene(10, "metal");
+  tracer::TraceScene scene(scene_def);
+  const Vec3 tx{-6, 0, 5}, rx{7, 1, 6};
+  const double S = 0.6;
+  const int rays = 1 << 18;
+  auto cfg = diffuse_config(rays);
+  tracer::MaterialOverride mo;
+  mo.scattering_coefficient = S;
+  mo.xpd = 0.5;
+  mo.lobe = tracer::ScatteringLobe::directive;
+  mo.alpha_r = 4;
+  cfg.materials["metal"] = mo;
+  const std::vector<tracer::Node> nodes = {node("tx", tx), node("rx", rx)};
+  const auto on = tracer::trace_snapshot(scene, nodes, cfg, {});
+  cfg.diffuse = false;
+  const auto off = tracer::trace_snapshot(scene, nodes, cfg, {});
+  const auto p_on = powers(on.pairs[0]), p_off = powers(off.pairs[0]);
+  ASSERT_TRUE(p_on.specular && p_off.specular);
+  EXPECT_NEAR(std::norm(p_on.specular->a) / std::norm(p_off.specular->a), 1 - S * S, 1e-9);
+  EXPECT_EQ(p_off.n_diffuse, 0u);
+  // Unchanged phase and delay: the partition scales the amplitude only.
+  EXPECT_NEAR(std::arg(p_on.specular->a / p_off.specular->a), 0.0, 1e-9);
+  EXPECT_EQ(p_on.specular->tau_s, p_off.specular->tau_s);
+
+  const auto metal = tracer::radio_material("metal", kF);
+  const LobeTable f4(4);
+  PlateIntegral ref;
+  ref.h = 10;
+  ref.tx = tx;
+  ref.rx = rx;
+  ref.s = S;
+  ref.material = &metal;
+  ref.panels = 40;
+  ref.pattern = [&](const Vec3& k_in, const Vec3& k_s, double theta_i) {
+    if (k_s[2] <= 0) return 0.0;
+    const Vec3 spec{k_in[0], k_in[1], -k_in[2]};
+    return std::pow((1 + tracer::dot(k_s, spec)) / 2, 4) / f4(theta_i);
+  };
+  const double expect = ref();
+  const double lattice = plate_lattice_sum(ref, rays);
+  std::printf("directive plate: radar integral %.6e, lattice %.6e (%+.3f %%), traced %.6e (%+.3f %%) in %zu paths\n",
+              expect, lattice, 100 * (lattice / expect - 1), p_on.diffuse, 100 * (p_on.diffuse / expect - 1),
+              p_on.n_diffuse);
+  ASSERT_NEAR(lattice / expect, 1.0, 0.01);
+  EXPECT_NEAR(p_on.diffuse / expect, 1.0, 0.05);
+}
+
+// ---------------------------------------------------------------------------
+// 10. Switch and determinism.
+
+TEST(Diffuse, SwitchAndThreadCountDeterminism) {
+  meshkit::Scene s;
+  add_ground(s, 300);
+  add_box_object(s, {10, -20, 0}, {30, -5, 15}, "concrete", "block");  // default S = 0.4
+  add_wall_y(s, 25, 200, "brick", "north");
+  tracer::TraceScene scene(s);
+  const std::vector<tracer::Node> nodes = {node("a", {0, 0, 1.5}), node("b", {40, 3, 1.6}), node("c", {-30, -2, 5}),
+                                           node("d", {20, 2, 2})};
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = 8192;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = true;
+  const auto off = tracer::trace_snapshot(scene, nodes, cfg, {});
+  EXPECT_EQ(off.stats.diffuse_paths, 0u);
+  for (const auto& p : off.pairs)
+    for (const auto& path : p.paths)
+      for (const auto& in : path.interactions) EXPECT_NE(in.type, tracer::InteractionType::diffuse);
+
+  cfg.diffuse = true;
+  auto run = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    return tracer::trace_snapshot(scene, nodes, cfg, {});
+  };
+  const auto one = run(1), two = run(2);
+  EXPECT_GT(one.stats.diffuse_paths, 0u);
+  std::uint64_t diffuse = 0;
+  for (const auto& p : one.pairs)
+    for (const auto& path : p.paths) {
+      const bool d = !path.interactions.empty() && path.interactions.back().type == tracer::InteractionType::diffuse;
+      diffuse += d;
+      for (std::size_t k = 0; k + 1 < path.interactions.size(); ++k)
+        EXPECT_NE(path.interactions[k].type, tracer::InteractionType::diffuse) << "diffuse is the last interaction";
+      EXPECT_TRUE(std::isfinite(std::abs(path.a)));
+    }
+  EXPECT_EQ(diffuse, one.stats.diffuse_paths);
+  ASSERT_EQ(one.pairs.size(), two.pairs.size());
+  EXPECT_EQ(one.stats.paths, two.stats.paths);
+  EXPECT_EQ(one.stats.diffuse_paths, two.stats.diffuse_paths);
+  EXPECT_EQ(one.stats.diffraction_paths, two.stats.diffraction_paths);
+  for (std::size_t i = 0; i < one.pairs.size(); ++i) {
+    ASSERT_EQ(one.pairs[i].paths.size(), two.pairs[i].paths.size()) << "pair " << i;
+    for (std::size_t k = 0; k < one.pairs[i].paths.size(); ++k) {
+      const auto &x = one.pairs[i].paths[k], &y = two.pairs[i].paths[k];
+      EXPECT_EQ(std::memcmp(&x.a, &y.a, sizeof x.a), 0) << "pair " << i << " path " << k;  // bitwise
+      EXPECT_EQ(std::memcmp(&x.tau_s, &y.tau_s, sizeof x.tau_s), 0);
+      EXPECT_EQ(x.doppler_hz, y.doppler_hz);
+      EXPECT_EQ(x.theta_t, y.theta_t);
+      EXPECT_EQ(x.phi_r, y.phi_r);
+      ASSERT_EQ(x.interactions.size(), y.interactions.size());
+      for (std::size_t q = 0; q < x.interactions.size(); ++q) {
+        EXPECT_EQ(x.interactions[q].type, y.interactions[q].type);
+        EXPECT_EQ(x.interactions[q].point, y.interactions[q].point);
+      }
+    }
+  }
+}
