@@ -250,13 +250,24 @@ void BM_EmbreeRaw(benchmark::State& state, const std::string& name) {
   state.counters["hit_fraction"] = static_cast<double>(hits) / static_cast<double>(dirs.size());
 }
 
+// Mechanism sets of the snapshot benchmark: each adds its cost on top of
+// the specular/refraction core (the tracer's defaults otherwise).
+enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3 };
+const char* mechanisms_name(int m) {
+  static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
+  return names[m];
+}
+
 void BM_Snapshot(benchmark::State& state, const std::string& name) {
   const int n = static_cast<int>(state.range(0));
+  const int mech = state.range(1);
   const Placement* used = nullptr;
   tracer::TraceScene* scene = scene_with_vehicles(state, name, n, &used);
   if (!scene) return;
   const auto nodes = tracer::vehicle_nodes(*scene);
-  const tracer::TracerConfig cfg;
+  tracer::TracerConfig cfg;
+  cfg.diffraction = mech & kDiffraction;
+  cfg.diffuse = mech & kDiffuse;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   for (auto _ : state) {
@@ -282,6 +293,10 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["paths"] = static_cast<double>(snap.stats.paths);
   state.counters["candidates"] = static_cast<double>(snap.stats.candidates);
   state.counters["dropped_cap"] = static_cast<double>(snap.stats.dropped_transmission_cap);
+  state.counters["below_threshold"] = static_cast<double>(snap.stats.dropped_threshold);
+  state.counters["diffraction_paths"] = static_cast<double>(snap.stats.diffraction_paths);
+  state.counters["diffuse_paths"] = static_cast<double>(snap.stats.diffuse_paths);
+  state.counters["edges"] = static_cast<double>(scene->edges().size());
   state.counters["LOS"] = static_cast<double>(los);
   state.counters["NLOSV"] = static_cast<double>(nlosv);
   state.counters["NLOS"] = static_cast<double>(nlos);
@@ -289,7 +304,8 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["passenger_only"] = used->passenger_only ? 1 : 0;
   state.counters["trucks"] = static_cast<double>(trucks);
   state.counters["buses"] = static_cast<double>(buses);
-  state.SetLabel(used->passenger_only ? "mix passenger" : "mix passenger:truck:bus 8:1:1");
+  state.SetLabel(std::string(mechanisms_name(mech)) +
+                 (used->passenger_only ? ", mix passenger" : ", mix passenger:truck:bus 8:1:1"));
 }
 
 void register_all() {
@@ -306,7 +322,10 @@ void register_all() {
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();
     auto* snap = benchmark::RegisterBenchmark(("BM_Snapshot/" + scene).c_str(), BM_Snapshot, scene);
-    for (int n : {5, 10, 20, 40, 60, 120}) snap->Arg(n);
+    for (int n : {5, 10, 20, 40, 60, 120}) snap->Args({n, kSpecular});
+    // The cost of each mechanism (issue 5), at two traffic densities.
+    for (int n : {20, 60})
+      for (int m : {kDiffraction, kDiffuse, kAll}) snap->Args({n, m});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }

@@ -145,7 +145,45 @@ TrafficArgs load_traffic_args(const std::string& path, const CityConfig& city, c
   return a;
 }
 
+// The FCD and vType files of a traffic stage's folder; returns its end time (< 0 unknown).
+double read_traffic_record(const fs::path& traffic_dir, std::string& fcd, std::vector<std::string>& vtype_files) {
+  std::ifstream in(traffic_dir / "traffic.json");
+  const json rec = json::parse(in);
+  fcd = (traffic_dir / rec.at("fcd").get<std::string>()).string();
+  for (const auto& f : rec.at("vtype_files")) {
+    const fs::path p(f.get<std::string>());
+    vtype_files.push_back(p.is_absolute() ? p.string() : (traffic_dir / p).string());
+  }
+  return rec.value("end_s", -1.0);
+}
+
 }  // namespace
+
+CityOutputs city_outputs(const std::string& city_file, const std::string& out_dir) {
+  const CityConfig city = load_city_config(city_file);
+  CityOutputs o;
+  const fs::path out = out_dir.empty() ? fs::path(city.out) : fs::path(out_dir);
+  o.out = out.string();
+  o.scene = (out / "scene").string();
+  o.vehicles = (out / "vehicles").string();
+  o.rsus = city.rsus;
+  const std::string hint = "; run `raysweep run " + city_file + (out_dir.empty() ? "" : " --out " + out_dir) + "` first";
+  if (!fs::exists(out / "scene" / "scene.glb"))
+    throw std::invalid_argument(o.scene + ": no scene.glb (the scene of city " + city.name + ")" + hint);
+  if (!fs::exists(out / "vehicles" / "manifest.json"))
+    throw std::invalid_argument(o.vehicles + ": no vehicle library (manifest.json)" + hint);
+  if (!city.fcd.empty()) {
+    o.fcd = city.fcd;
+  } else {
+    const fs::path traffic = out / "traffic";
+    if (!fs::exists(traffic / "traffic.json"))
+      throw std::invalid_argument(traffic.string() + ": no traffic (traffic.json)" + hint);
+    read_traffic_record(traffic, o.fcd, o.vtypes);
+    if (!fs::exists(o.fcd)) throw std::invalid_argument(o.fcd + ": FCD trace not found" + hint);
+  }
+  if (!city.sumocfg.empty() && o.vtypes.empty()) o.vtypes.push_back(city.sumocfg);
+  return o;
+}
 
 json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const CityConfig city = load_city_config(args.city);
@@ -217,14 +255,7 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
       run_traffic_stage(t, argv);
       stamps.mark("traffic", traffic_key);
     }
-    std::ifstream in(traffic_dir / "traffic.json");
-    const json rec = json::parse(in);
-    fcd = (traffic_dir / rec.at("fcd").get<std::string>()).string();
-    for (const auto& f : rec.at("vtype_files")) {
-      const fs::path p(f.get<std::string>());
-      vtype_files.push_back(p.is_absolute() ? p.string() : (traffic_dir / p).string());
-    }
-    eta_end = rec.value("end_s", -1.0);
+    eta_end = read_traffic_record(traffic_dir, fcd, vtype_files);
   }
   if (!city.sumocfg.empty() && vtype_files.empty()) vtype_files.push_back(city.sumocfg);
 

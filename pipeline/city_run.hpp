@@ -31,6 +31,17 @@ struct CityConfig {
 };
 CityConfig load_city_config(const std::string& path);
 
+// Where `raysweep run CITY.toml [--out OUT]` put the inputs of its sweep: the
+// scene and vehicle library folders, the FCD trace (from its traffic stage,
+// or [traffic] fcd as given) with its vType files, and the city's RSUs.
+struct CityOutputs {
+  std::string out, scene, vehicles, fcd, rsus;
+  std::vector<std::string> vtypes;
+};
+// Throws std::invalid_argument naming what is missing and saying to run
+// `raysweep run CITY.toml` first.
+CityOutputs city_outputs(const std::string& city_file, const std::string& out = "");
+
 nlohmann::json run_city(const CityRunArgs& args, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

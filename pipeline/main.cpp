@@ -18,6 +18,7 @@
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
+#include "pipeline/tradeoff_stage.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
@@ -169,6 +170,37 @@ int main(int argc, char** argv) {
   rp->add_option("--out", report.out, "output folder")->required();
   rp->add_option("--labels", report.labels, "comma-separated labels (default: the channel models)");
 
+  raysweep::pipeline::TradeoffArgs tradeoff;
+  auto* to = app.add_subcommand("tradeoff",
+                                "tracer accuracy against cost: a grid of settings vs a high-effort reference "
+                                "(CSV, JSON, PNG with the Pareto front)");
+  to->add_option("city", tradeoff.city, "city config (uses the outputs of `raysweep run CITY.toml`)");
+  to->add_option("--city-out", tradeoff.city_out, "the output folder of that run, when it ran with --out");
+  to->add_option("--scene", tradeoff.scene, "scene folder (instead of a city file)");
+  to->add_option("--vehicles", tradeoff.vehicles, "vehicle library folder (default: built-in parametric models)");
+  to->add_option("--fcd", tradeoff.fcd, "SUMO FCD trace (instead of a city file)");
+  to->add_option("--vtypes", tradeoff.vtypes, ".sumocfg or route/additional files defining the FCD's vehicle types");
+  to->add_option("--rsus", tradeoff.rsus, "road-side units CSV: id,x,y,z");
+  to->add_option("--config", tradeoff.config, "TOML config ([sweep], [radio], [tracer], [materials.<name>]): the base");
+  to->add_option("--out", tradeoff.out, "output folder (default with a city: <city out>/tradeoff)");
+  to->add_option("--snapshots", tradeoff.snapshots, "frames evenly spaced over the trace (default 4; --quick 2)")
+      ->check(CLI::PositiveNumber);
+  to->add_option("--rays", tradeoff.rays, "rays per source of the grid (default 1024,4096,16384)");
+  to->add_option("--depths", tradeoff.depths, "maximum depths of the grid (default 1,2,3)");
+  to->add_option("--simplify", tradeoff.simplify, "static simplification errors in metres (default 0.5,2)");
+  to->add_option("--reference-rays", tradeoff.reference_rays, "reference rays per source (default 4 x the largest)")
+      ->check(CLI::PositiveNumber);
+  to->add_option("--reference-depth", tradeoff.reference_depth, "reference depth (default largest + 1, at most 5)")
+      ->check(CLI::NonNegativeNumber);
+  to->add_option("--repeats", tradeoff.repeats, "trace everything N times; a snapshot's time is its fastest (default 1)")
+      ->check(CLI::PositiveNumber);
+  to->add_option("--target-p95", tradeoff.target_p95_db,
+                 "suggest the cheapest setting within this 95th-percentile gain error (dB)")
+      ->capture_default_str();
+  to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
+  bool tradeoff_no_chart = false;
+  to->add_flag("--no-chart", tradeoff_no_chart, "skip tradeoff.png");
+
   std::string check_file;
   auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
   vd->add_option("file", check_file, "dataset .h5")->required();
@@ -178,7 +210,12 @@ int main(int argc, char** argv) {
   inf->add_option("file", info_file, "dataset .h5")->required();
   inf->add_flag("--json", info_json, "print the summary as JSON");
 
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; usage errors (unknown option, bad value) 2, like any bad input.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
   if (quiet) spdlog::set_level(spdlog::level::warn);
   std::optional<tbb::global_control> thread_limit;
   if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
@@ -244,6 +281,16 @@ int main(int argc, char** argv) {
         std::cout << "\nSINR report: " << summary["sinr_report"].get<std::string>() << "/report.md (+ PNGs)\n";
       }
       if (!summary["valid"].get<bool>()) return 1;
+    }
+    if (to->parsed()) {
+      tradeoff.chart = !tradeoff_no_chart;
+      const auto r = raysweep::pipeline::run_tradeoff_stage(tradeoff, args);
+      std::cout << r["table"].get<std::string>();
+      std::cout << "tradeoff: " << r["csv"].get<std::string>() << ", " << r["json"].get<std::string>();
+      if (r.contains("png")) std::cout << "\npicture: " << r["png"].get<std::string>();
+      std::cout << "\nsuggested (cheapest with p95 gain error <= " << r["target_p95_db"].get<double>()
+                << " dB and LoS agreement >= 99%): "
+                << (r["suggested"].is_null() ? std::string("none") : r["suggested"].get<std::string>()) << "\n";
     }
     if (vd->parsed()) {
       const auto problems = raysweep::generators::validate_dataset(check_file);

@@ -130,6 +130,86 @@ SweepConfig load_sweep_config(const std::string& path) {
   return c;
 }
 
+FcdFilter sweep_fcd_filter(const SweepConfig& cfg) {
+  FcdFilter filter;
+  filter.begin_s = cfg.begin_s;
+  filter.end_s = cfg.end_s;
+  filter.step_s = cfg.step_s;
+  filter.ids.insert(cfg.ids.begin(), cfg.ids.end());
+  filter.types.insert(cfg.types.begin(), cfg.types.end());
+  if (!cfg.area.empty()) filter.area = FcdArea{cfg.area[0], cfg.area[1], cfg.area[2], cfg.area[3]};
+  return filter;
+}
+
+FcdTypeModels::FcdTypeModels(const VTypeMap& vtypes, VehicleLibrary& library, bool use_type_entries,
+                             std::string fcd_path)
+    : vtypes_(vtypes), library_(library), use_type_entries_(use_type_entries), fcd_(std::move(fcd_path)) {}
+
+const FcdTypeModel* FcdTypeModels::resolve(const FcdVehicle& v) {
+  auto it = cache_.find(v.type);
+  if (it != cache_.end()) return it->second ? &*it->second : nullptr;
+  const auto resolved = vtypes_.resolve(v.type);
+  std::optional<FcdTypeModel> tm;
+  if (!resolved) {
+    spdlog::warn("{}: line {}: vehicle type '{}' is a class raysweep does not model; its vehicles are skipped", fcd_,
+                 v.line, v.type);
+  } else {
+    if (!resolved->known)
+      spdlog::warn("{}: line {}: vehicle type '{}' is not defined in the vType files; traced as '{}'", fcd_, v.line,
+                   v.type, resolved->vclass);
+    const meshkit::VehicleModel* m = nullptr;
+    std::string key = v.type;
+    if (use_type_entries_) {
+      try {
+        m = &library_.model(v.type);
+      } catch (const std::exception&) {
+      }
+    }
+    if (!m) {
+      key = resolved->vclass;
+      m = &library_.model(resolved->vclass);
+    }
+    const auto dims = m->dims();
+    tm = FcdTypeModel{key, resolved->vclass, m, std::max(dims.length, resolved->length_m),
+                      std::max(dims.width, resolved->width_m), std::max(dims.height, resolved->height_m)};
+  }
+  it = cache_.emplace(v.type, tm).first;
+  return it->second ? &*it->second : nullptr;
+}
+
+SweepSelection::SweepSelection(const SweepConfig& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path)
+    : max_vehicles_(cfg.max_vehicles), drop_outside_(cfg.outside == "drop"), bounds_(scene_bounds),
+      fcd_(std::move(fcd_path)) {}
+
+std::vector<const FcdVehicle*> SweepSelection::select(const FcdFrame& frame,
+                                                      const std::function<bool(const FcdVehicle&)>& traceable) {
+  if (max_vehicles_ > 0) {
+    std::set<std::string> present;
+    for (const auto& v : frame.vehicles) present.insert(v.id);
+    for (auto it = selected_.begin(); it != selected_.end();) it = present.count(*it) ? std::next(it) : selected_.erase(it);
+  }
+  std::vector<const FcdVehicle*> out;
+  for (const auto& v : frame.vehicles) {
+    if (!traceable(v)) continue;
+    if (max_vehicles_ > 0 && !selected_.count(v.id)) {
+      if (selected_.size() >= max_vehicles_) continue;
+      selected_.insert(v.id);
+    }
+    const auto& b = bounds_;
+    if (v.x < b.min[0] || v.x > b.max[0] || v.y < b.min[1] || v.y > b.max[1]) {
+      if (!drop_outside_)
+        throw meshkit::InputError(fcd_, "line " + std::to_string(v.line) + " vehicle " + v.id,
+                                  "outside the scene (x " + std::to_string(b.min[0]) + ".." + std::to_string(b.max[0]) +
+                                      ", y " + std::to_string(b.min[1]) + ".." + std::to_string(b.max[1]) +
+                                      "); set [sweep] outside = \"drop\" to skip such vehicles");
+      ++dropped_outside_;
+      continue;
+    }
+    out.push_back(&v);
+  }
+  return out;
+}
+
 json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv) {
   const auto t_start = std::chrono::steady_clock::now();
   if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
@@ -199,56 +279,24 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       rsus.push_back({idx, {r.x, r.y, r.z}});
     }
   }
-  struct TypeModel {
-    std::uint32_t model;
-    std::string vclass;
-    double length, width, height;
-  };
-  std::map<std::string, std::optional<TypeModel>> type_models;
-  std::set<std::string> warned;
-  auto model_for = [&](const FcdVehicle& v) -> const std::optional<TypeModel>& {
-    auto it = type_models.find(v.type);
-    if (it != type_models.end()) return it->second;
-    const auto resolved = vtypes.resolve(v.type);
-    std::optional<TypeModel> tm;
-    if (!resolved) {
-      spdlog::warn("{}: line {}: vehicle type '{}' is a class raysweep does not model; its vehicles are skipped",
-                   args.fcd, v.line, v.type);
-    } else {
-      if (!resolved->known)
-        spdlog::warn("{}: line {}: vehicle type '{}' is not defined in the vType files; traced as '{}'", args.fcd,
-                     v.line, v.type, resolved->vclass);
-      const meshkit::VehicleModel* m = nullptr;
-      if (!args.vehicles.empty()) {
-        try {
-          m = &library.model(v.type);
-        } catch (const std::exception&) {
-        }
-      }
-      if (!m) m = &library.model(resolved->vclass);
-      const auto dims = m->dims();
-      const std::uint32_t idx = scene.add_vehicle_model(m->name, meshkit::to_scene(*m), m->antenna);
-      tm = TypeModel{idx, resolved->vclass, std::max(dims.length, resolved->length_m),
-                     std::max(dims.width, resolved->width_m), std::max(dims.height, resolved->height_m)};
-    }
-    return type_models.emplace(v.type, tm).first->second;
+  // Scene model of each FCD vehicle type (registered when the type first appears).
+  FcdTypeModels type_models(vtypes, library, !args.vehicles.empty(), args.fcd);
+  std::map<std::string, std::uint32_t> scene_models;
+  auto model_for = [&](const FcdVehicle& v) -> const FcdTypeModel* {
+    const FcdTypeModel* tm = type_models.resolve(v);
+    if (tm && !scene_models.count(v.type))
+      scene_models[v.type] = scene.add_vehicle_model(tm->model->name, meshkit::to_scene(*tm->model), tm->model->antenna);
+    return tm;
   };
 
-  FcdFilter filter;
-  filter.begin_s = cfg.begin_s;
-  filter.end_s = cfg.end_s;
-  filter.step_s = cfg.step_s;
-  filter.ids.insert(cfg.ids.begin(), cfg.ids.end());
-  filter.types.insert(cfg.types.begin(), cfg.types.end());
-  if (!cfg.area.empty()) filter.area = FcdArea{cfg.area[0], cfg.area[1], cfg.area[2], cfg.area[3]};
-  FcdReader reader(args.fcd, filter);
+  FcdReader reader(args.fcd, sweep_fcd_filter(cfg));
+  SweepSelection selection(cfg, bounds, args.fcd);
 
   generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
   std::vector<generators::FrameRecord> block;
-  std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0, dropped_outside = 0;
+  std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0;
   bool skipping_block = false;
   json block_stats = json::array();
-  std::set<std::string> selected;  // max_vehicles: the vehicles being traced
   auto progress_at = std::chrono::steady_clock::now();
   double first_time = 0, last_time = 0;
   FcdFrame frame;
@@ -298,45 +346,27 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
 
     // Vehicles of this frame: types, selection, scene bounds, node ids.
     std::vector<generators::SweepVehicle> vehicles;
-    std::set<std::string> present;
-    for (const auto& v : frame.vehicles) present.insert(v.id);
-    if (cfg.max_vehicles > 0)
-      for (auto it = selected.begin(); it != selected.end();) it = present.count(*it) ? std::next(it) : selected.erase(it);
-    for (const auto& v : frame.vehicles) {
-      const auto& tm = model_for(v);
-      if (!tm) continue;
-      if (cfg.max_vehicles > 0 && !selected.count(v.id)) {
-        if (selected.size() >= cfg.max_vehicles) continue;
-        selected.insert(v.id);
-      }
-      if (v.x < bounds.min[0] || v.x > bounds.max[0] || v.y < bounds.min[1] || v.y > bounds.max[1]) {
-        if (cfg.outside == "error")
-          throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
-                                    "outside the scene (x " + std::to_string(bounds.min[0]) + ".." +
-                                        std::to_string(bounds.max[0]) + ", y " + std::to_string(bounds.min[1]) +
-                                        ".." + std::to_string(bounds.max[1]) +
-                                        "); set [sweep] outside = \"drop\" to skip such vehicles");
-        ++dropped_outside;
-        continue;
-      }
+    for (const FcdVehicle* vp : selection.select(frame, [&](const FcdVehicle& v) { return model_for(v) != nullptr; })) {
+      const FcdVehicle& v = *vp;
+      const FcdTypeModel* tm = model_for(v);
       auto [it, added] = node_index.emplace(v.id, static_cast<std::uint32_t>(node_table.size()));
       if (added) {
-        node_table.push_back({v.id, generators::NodeKind::vehicle, tm->vclass, v.type, static_cast<float>(tm->length),
-                              static_cast<float>(tm->width), static_cast<float>(tm->height)});
+        node_table.push_back({v.id, generators::NodeKind::vehicle, tm->vclass, v.type, static_cast<float>(tm->length_m),
+                              static_cast<float>(tm->width_m), static_cast<float>(tm->height_m)});
       } else if (node_table[it->second].kind == generators::NodeKind::rsu) {
         throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
                                   "has the id of a road-side unit in " + args.rsus);
       }
       generators::SweepVehicle sv;
       sv.node = it->second;
-      sv.model = tm->model;
+      sv.model = scene_models.at(v.type);
       sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
       sv.heading_deg = v.angle_deg;
       const double yaw = yaw_from_heading(v.angle_deg);
       sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
-      sv.length_m = tm->length;
-      sv.width_m = tm->width;
-      sv.height_m = tm->height;
+      sv.length_m = tm->length_m;
+      sv.width_m = tm->width_m;
+      sv.height_m = tm->height_m;
       vehicles.push_back(sv);
     }
     if (!skipping_block) block.push_back(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
@@ -361,6 +391,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   }
   if (!skipping_block) commit_block();
   if (frame_index == 0) throw meshkit::InputError(args.fcd, "", "no frame left after the time/step filters");
+  const std::uint64_t dropped_outside = selection.dropped_outside();
   if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
 
   // Assemble the dataset from the committed blocks.

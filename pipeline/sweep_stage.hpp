@@ -9,12 +9,21 @@
 // uninterrupted run's.
 #pragma once
 
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "generators/sweep.hpp"
+#include "meshkit/scene.hpp"
+#include "pipeline/fcd.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "pipeline/vtypes.hpp"
 
 namespace raysweep::pipeline {
 
@@ -45,6 +54,61 @@ struct SweepConfig {
   nlohmann::json to_json() const;
 };
 SweepConfig load_sweep_config(const std::string& path);
+
+// What a sweep reads of an FCD trace, shared with `raysweep tradeoff` so that
+// both trace the same vehicles.
+
+// The FCD filter of a [sweep] table: time window, step, ids, types, area.
+FcdFilter sweep_fcd_filter(const SweepConfig& cfg);
+
+// An FCD vehicle type resolved to a library model.
+struct FcdTypeModel {
+  std::string key;     // name the library found the model under: the type id, else its class
+  std::string vclass;  // library class of the type
+  const meshkit::VehicleModel* model = nullptr;
+  double length_m = 0, width_m = 0, height_m = 0;  // the larger of the model's and the vType's
+};
+
+// FCD vehicle types -> models: the vType files give the class (unknown ids are
+// passenger cars, with a warning naming the FCD line); a library entry named
+// like the type is preferred to the class's. Each type is resolved once.
+class FcdTypeModels {
+ public:
+  // `use_type_entries`: look for library entries named like the type (a
+  // `raysweep vehicles` folder; the built-in models only have classes).
+  FcdTypeModels(const VTypeMap& vtypes, VehicleLibrary& library, bool use_type_entries, std::string fcd_path);
+  // nullptr for types whose class raysweep does not model (warned once).
+  const FcdTypeModel* resolve(const FcdVehicle& v);
+
+ private:
+  const VTypeMap& vtypes_;
+  VehicleLibrary& library_;
+  bool use_type_entries_;
+  std::string fcd_;
+  std::map<std::string, std::optional<FcdTypeModel>> cache_;
+};
+
+// Which vehicles of each frame a sweep traces: [sweep] max_vehicles (the
+// first N to appear, refilled as they leave) and outside (a vehicle outside
+// the scene's x/y bounds is an InputError naming the FCD line, or dropped and
+// counted). Frames must be passed in order, every one of them.
+class SweepSelection {
+ public:
+  SweepSelection(const SweepConfig& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path);
+  // The vehicles to trace, in FCD order, among those `traceable` accepts
+  // (vehicles of types without a model are skipped before selection).
+  std::vector<const FcdVehicle*> select(const FcdFrame& frame,
+                                        const std::function<bool(const FcdVehicle&)>& traceable);
+  std::uint64_t dropped_outside() const { return dropped_outside_; }
+
+ private:
+  std::size_t max_vehicles_;
+  bool drop_outside_;
+  meshkit::Bounds bounds_;
+  std::string fcd_;
+  std::set<std::string> selected_;
+  std::uint64_t dropped_outside_ = 0;
+};
 
 nlohmann::json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv);
 

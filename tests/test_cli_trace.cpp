@@ -57,7 +57,9 @@ TEST(CliTrace, DemoSnapshotHasEveryPairWithDocumentedFields) {
       for (const char* key : {"a_re", "a_im", "tau_s", "theta_t", "phi_t", "theta_r", "phi_r", "doppler_hz"})
         ASSERT_TRUE(path[key].is_number()) << key;
       for (const auto& i : path["interactions"]) {
-        EXPECT_TRUE(i["type"] == "specular" || i["type"] == "refraction") << i;
+        EXPECT_TRUE(i["type"] == "specular" || i["type"] == "refraction" || i["type"] == "diffuse" ||
+                    i["type"] == "diffraction")
+            << i;
         EXPECT_TRUE(i["object"].is_string());
         EXPECT_TRUE(i["material"].is_string());
       }

@@ -147,11 +147,20 @@ KpTerms kp_pec(double n, double phi_i, double phi_d, double beta0, double L, dou
   return kp_wedge(n, phi_i, phi_d, beta0, L, k, -1.0, 1.0, -1.0, 1.0);  // soft -1, hard +1 on both faces
 }
 // Luebbers: face 0 at the grazing angle phi_i, face n at n pi - phi_d, as a
-// slab of each material (TE for soft, TM for hard).
+// slab of each material (TE for soft, TM for hard); made reciprocal: a face's
+// coefficient is taken at the angle of each end that sees it (angle from
+// the face in (0, pi)) and averaged when both do (both angles when neither).
 KpTerms kp_luebbers(double n, double phi_i, double phi_d, double beta0, double L, double k,
                     const tracer::RadioMaterial& m0, const tracer::RadioMaterial& mn) {
-  const auto r0 = tracer::slab_coefficients(m0, std::sin(beta0) * std::sin(phi_i)).r;
-  const auto rn = tracer::slab_coefficients(mn, std::sin(beta0) * std::sin(n * kPi - phi_d)).r;
+  auto r = [&](const tracer::RadioMaterial& m, double a, double b) {
+    auto at = [&](double g) { return tracer::slab_coefficients(m, std::sin(beta0) * std::fabs(std::sin(g))).r; };
+    const bool sees_a = a > 0 && a < kPi, sees_b = b > 0 && b < kPi;
+    if (sees_a && !sees_b) return at(a);
+    if (sees_b && !sees_a) return at(b);
+    const auto x = at(a), y = at(b);
+    return tracer::TeTm{0.5 * (x.te + y.te), 0.5 * (x.tm + y.tm)};
+  };
+  const auto r0 = r(m0, phi_i, phi_d), rn = r(mn, n * kPi - phi_d, n * kPi - phi_i);
   return kp_wedge(n, phi_i, phi_d, beta0, L, k, r0.te, r0.tm, rn.te, rn.tm);
 }
 
@@ -531,6 +540,20 @@ TEST(Diffraction, WedgeCoefficientsMatchKouyoumjianPathak) {
           }
   std::printf("utd_wedge (PEC): %zu points, worst error %.3g of the summed term size\n", checked, worst);
   EXPECT_GT(checked, 500u);
+}
+
+// Swapping the two ends of a diffraction path must not change it.
+TEST(Diffraction, WedgeCoefficientsAreReciprocal) {
+  const auto concrete = tracer::radio_material("concrete", kF);
+  const auto glass = tracer::radio_material("glass", kF);
+  for (double n : {1.5, 1.8, 2.0})
+    for (double a = 0.1; a < n * kPi; a += 0.37)
+      for (double b = 0.15; b < n * kPi; b += 0.41) {
+        const auto ab = tracer::utd_wedge(n, a, b, 70 * kDeg, 7.0, kK, &concrete, &glass);
+        const auto ba = tracer::utd_wedge(n, b, a, 70 * kDeg, 7.0, kK, &concrete, &glass);
+        EXPECT_LT(std::abs(ab.soft - ba.soft), 1e-12 * (1 + std::abs(ab.soft))) << n << " " << a << " " << b;
+        EXPECT_LT(std::abs(ab.hard - ba.hard), 1e-12 * (1 + std::abs(ab.hard))) << n << " " << a << " " << b;
+      }
 }
 
 TEST(Diffraction, WedgeCoefficientsMatchLuebbers) {

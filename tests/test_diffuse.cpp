@@ -473,6 +473,7 @@ TEST(Diffuse, SwitchAndThreadCountDeterminism) {
   cfg.rays_per_source = 8192;
   cfg.path_threshold_db = 0;
   cfg.diffraction = true;
+  cfg.diffuse = false;
   const auto off = tracer::trace_snapshot(scene, nodes, cfg, {});
   EXPECT_EQ(off.stats.diffuse_paths, 0u);
   for (const auto& p : off.pairs)

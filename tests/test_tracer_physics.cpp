@@ -61,9 +61,14 @@ Slab slab(cd eta, double d, double c, bool te) {
   return {rp * (1.0 - e2) / den, (1.0 - rp * rp) * std::exp(cd(0, -1) * (q - q0)) / den};
 }
 
+// Geometrical optics against its closed forms: diffraction and diffuse
+// scattering (test_diffraction, test_diffuse) are off, every path is kept.
 tracer::TracerConfig config(int depth = 3) {
   tracer::TracerConfig c;
   c.max_depth = depth;
+  c.diffuse = false;
+  c.diffraction = false;
+  c.path_threshold_db = 0;
   return c;
 }
 

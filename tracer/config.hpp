@@ -50,10 +50,10 @@ struct TracerConfig {
   // shoot-and-bounce rays, on materials with a scattering coefficient > 0.
   // When on, specular reflections on those materials keep sqrt(1 - S^2) of
   // their field (the R^2 + S^2 = 1 energy partition).
-  bool diffuse = false;
+  bool diffuse = true;
   // First-order UTD edge diffraction on the static scene's wedges
   // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
-  bool diffraction = false;
+  bool diffraction = true;
   // A pair's paths weaker than its strongest by more than this (dB) are
   // dropped and counted in PairResult::dropped_threshold. <= 0: keep all.
   double path_threshold_db = 60;

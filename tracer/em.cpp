@@ -420,11 +420,23 @@ DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double b
   const cdouble t1 = cot_f(+1, dm, n, kL), t2 = cot_f(-1, dm, n, kL);
   const cdouble t3 = cot_f(-1, dp, n, kL), t4 = cot_f(+1, dp, n, kL);
   // Luebbers: face 0 seen at the grazing angle phi_i, face n at n pi - phi_d.
-  auto refl = [&](const RadioMaterial* m, double grazing) -> TeTm {
+  // That rule is not reciprocal (swapping the ends swaps the angles), so each
+  // face takes the mean of its coefficients at the grazing angles of the ends
+  // that see it (angle from the face in (0, pi)), or of both when neither
+  // does. At a face's reflection boundary both ends see it at angles of equal
+  // sine, so the boundary values, hence continuity, are Luebbers'.
+  auto refl = [&](const RadioMaterial* m, double a, double b) -> TeTm {
     if (!m) return {-1.0, 1.0};
-    return slab_coefficients(*m, std::clamp(sb * std::fabs(std::sin(grazing)), 0.0, 1.0)).r;
+    auto at = [&](double grazing) {
+      return slab_coefficients(*m, std::clamp(sb * std::fabs(std::sin(grazing)), 0.0, 1.0)).r;
+    };
+    const bool sa = a > 0 && a < kPi, sb_ = b > 0 && b < kPi;
+    if (sa != sb_) return at(sa ? a : b);
+    const TeTm x = at(a), y = at(b);
+    return {0.5 * (x.te + y.te), 0.5 * (x.tm + y.tm)};
   };
-  const TeTm r0 = refl(face0, phi_i), rn = refl(face_n, n * kPi - phi_d);
+  const TeTm r0 = refl(face0, phi_i, phi_d);
+  const TeTm rn = refl(face_n, n * kPi - phi_d, n * kPi - phi_i);
   return {pre * (t1 + t2 + r0.te * t3 + rn.te * t4), pre * (t1 + t2 + r0.tm * t3 + rn.tm * t4)};
 }
 

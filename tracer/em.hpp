@@ -137,8 +137,10 @@ std::pair<double, double> fresnel_cs(double x);
 // rays and the edge, distance parameter L (m) and wavenumber k. The faces'
 // reflection coefficients enter by Luebbers' rule (IEEE TAP 32(1), 1984):
 // face 0 at the grazing angle phi_i, face n at n pi - phi_d, each evaluated
-// as a slab of its material; nullptr means a perfect conductor (R = -1 soft,
-// +1 hard). Near the shadow and reflection boundaries the products cot * F
+// as a slab of its material; made reciprocal (D(phi_i, phi_d) =
+// D(phi_d, phi_i)) by taking each face's coefficient at the grazing angles of
+// the ends that see it (the mean when both do); nullptr means a perfect
+// conductor (R = -1 soft, +1 hard). Near the shadow and reflection boundaries the products cot * F
 // are replaced by their finite limits, so the coefficients never blow up.
 struct DiffractionCoefficients {
   cdouble soft, hard;
