@@ -352,32 +352,22 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
 
 namespace {
 
-// Diffuse contributions of one source's rays, binned per receiver, face
-// sequence (reflections, then the scattering face) and delay bin; sums in
-// a fixed order (rays within a chunk, chunks in index order), so the result
+// Diffuse contributions of one source's rays, binned per receiver,
+// scattering object (a building, the ground, a vehicle) and delay bin of
+// 1 / bandwidth: contributions the system cannot resolve in delay, from one
+// object (so from one direction, roughly), become one path. Sums run in a
+// fixed order (rays within a chunk, chunks in index order), so the result
 // does not depend on the thread count.
 struct DiffuseKey {
   std::uint32_t rx = 0;
+  std::uint32_t object = 0;
   std::int64_t bin = 0;
-  int n = 0;
-  std::array<FaceRef, kMaxDepth + 1> faces{};
-  bool operator==(const DiffuseKey& o) const {
-    return rx == o.rx && bin == o.bin && n == o.n && std::equal(faces.begin(), faces.begin() + n, o.faces.begin());
-  }
-  bool operator<(const DiffuseKey& o) const {
-    if (rx != o.rx) return rx < o.rx;
-    if (n != o.n) return n < o.n;
-    for (int i = 0; i < n; ++i)
-      if (faces[i] != o.faces[i]) return faces[i] < o.faces[i];
-    return bin < o.bin;
-  }
+  auto operator<=>(const DiffuseKey&) const = default;
 };
 struct DiffuseKeyHash {
   std::size_t operator()(const DiffuseKey& k) const {
-    std::size_t h = (k.rx * 0x9E3779B97F4A7C15ull) ^ static_cast<std::size_t>(k.bin) * 0xC2B2AE3D27D4EB4Full;
-    for (int i = 0; i < k.n; ++i)
-      h = (h ^ (std::size_t(k.faces[i].instance) << 32 ^ k.faces[i].face)) * 0x100000001B3ull;
-    return h;
+    return (k.rx * 0x9E3779B97F4A7C15ull) ^ (std::size_t(k.object) * 0xC2B2AE3D27D4EB4Full) ^
+           static_cast<std::size_t>(k.bin) * 0x100000001B3ull;
   }
 };
 struct DiffuseAcc {
@@ -387,7 +377,11 @@ struct DiffuseAcc {
   Vec3 departure{0, 0, 0};   // ray direction at the source
   Vec3 arrival{0, 0, 0};     // from rx towards the scattering point
   double doppler = 0;
-  double peak = 0;           // strongest single contribution: its earlier reflection points represent the bin
+  // The strongest single contribution's chain (earlier reflections, then
+  // the scattering face) names the path's interactions.
+  double peak = 0;
+  int n = 0;
+  std::array<FaceRef, kMaxDepth + 1> faces{};
   std::array<Vec3, kMaxDepth> prefix{};
   void add(const DiffuseAcc& o) {
     power += o.power;
@@ -398,6 +392,8 @@ struct DiffuseAcc {
     doppler += o.doppler;
     if (o.peak > peak) {
       peak = o.peak;
+      n = o.n;
+      faces = o.faces;
       prefix = o.prefix;
     }
   }
@@ -542,9 +538,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const double tau = (len_in + rs) / kSpeedOfLight;
           DiffuseKey dk;
           dk.rx = j;
-          dk.n = st.seq.n + 1;
-          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, dk.faces.begin());
-          dk.faces[st.seq.n] = hit.face;
+          dk.object = scene.object(hit.face);
           dk.bin = static_cast<std::int64_t>(std::floor(tau / diffuse->bin_s));
           auto [it, fresh] = bin_index.try_emplace(dk, diffuse_out->size());
           if (fresh) diffuse_out->emplace_back(dk, DiffuseAcc{});
@@ -557,6 +551,9 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const double dl = dl_in + dot(ks, nodes[j].velocity - v_surf);
           c.doppler = power * (-dl / lambda);
           c.peak = power;
+          c.n = st.seq.n + 1;
+          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, c.faces.begin());
+          c.faces[st.seq.n] = hit.face;
           c.prefix = st.points;
           (*diffuse_out)[it->second].second.add(c);
         }
@@ -823,10 +820,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         path.theta_r = zenith(arr);
         path.phi_r = azimuth(arr);
         path.doppler_hz = acc.doppler * w;
-        for (int q = 0; q + 1 < dk.n; ++q)
-          path.interactions.push_back(Interaction{InteractionType::specular, scene.object(dk.faces[q]),
-                                                  scene.material(dk.faces[q]), acc.prefix[q]});
-        const FaceRef last = dk.faces[dk.n - 1];
+        for (int q = 0; q + 1 < acc.n; ++q)
+          path.interactions.push_back(Interaction{InteractionType::specular, scene.object(acc.faces[q]),
+                                                  scene.material(acc.faces[q]), acc.prefix[q]});
+        const FaceRef last = acc.faces[acc.n - 1];
         path.interactions.push_back(
             Interaction{InteractionType::diffuse, scene.object(last), scene.material(last), w * acc.point});
         res.paths.push_back(std::move(path));
