@@ -7,6 +7,7 @@
 
 #include <array>
 #include <map>
+#include <vector>
 
 #include "meshkit/scene.hpp"
 
@@ -51,6 +52,35 @@ class OpenMeshWelder {
  private:
   OMMesh& mesh_;
   std::map<Vec3, OMMesh::VertexHandle> weld_;
+};
+
+// A triangle soup welded into OpenMesh for decimation, with status and face
+// normals requested. Faces OpenMesh cannot hold (non-manifold) stay out as
+// they are (`kept`, over `kept_vertices`); their corners are `pinned`, since
+// moving them would orphan those faces.
+struct WeldedMesh {
+  OMMesh mesh;
+  std::vector<Vec3> kept_vertices;
+  std::vector<Tri> kept;
+  std::vector<OMMesh::VertexHandle> pinned;
+
+  WeldedMesh(const std::vector<Vec3>& vertices, const std::vector<Tri>& triangles) {
+    OpenMeshWelder welder(mesh);
+    for (const auto& t : triangles) {
+      std::array<OMMesh::VertexHandle, 3> vh;
+      if (!welder.add(vertices[t[0]], vertices[t[1]], vertices[t[2]], vh)) {
+        for (auto h : vh) pinned.push_back(h);
+        const auto base = static_cast<std::uint32_t>(kept_vertices.size());
+        for (auto v : t) kept_vertices.push_back(vertices[v]);
+        kept.push_back({base, base + 1, base + 2});
+      }
+    }
+    mesh.request_vertex_status();
+    mesh.request_edge_status();
+    mesh.request_face_status();
+    mesh.request_face_normals();
+    mesh.update_face_normals();
+  }
 };
 
 }  // namespace raysweep::meshkit

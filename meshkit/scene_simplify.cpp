@@ -23,25 +23,11 @@ struct Piece {
 // nothing could be removed.
 bool decimate(Piece& piece, double max_error_m) {
   if (piece.triangles.size() < 4) return false;
-  OMMesh mesh;
-  OpenMeshWelder welder(mesh);
-  std::vector<Vec3> kept_vertices;
-  std::vector<Tri> kept;  // faces OpenMesh cannot hold (non-manifold): left as they are
-  std::vector<OMMesh::VertexHandle> pinned;
-  for (const auto& t : piece.triangles) {
-    std::array<OMMesh::VertexHandle, 3> vh;
-    if (!welder.add(piece.vertices[t[0]], piece.vertices[t[1]], piece.vertices[t[2]], vh)) {
-      for (auto h : vh) pinned.push_back(h);
-      const auto base = static_cast<std::uint32_t>(kept_vertices.size());
-      for (auto v : t) kept_vertices.push_back(piece.vertices[v]);
-      kept.push_back({base, base + 1, base + 2});
-    }
-  }
-  mesh.request_vertex_status();
-  mesh.request_edge_status();
-  mesh.request_face_status();
-  mesh.request_face_normals();
-  mesh.update_face_normals();
+  WeldedMesh welded(piece.vertices, piece.triangles);
+  OMMesh& mesh = welded.mesh;
+  const auto& kept_vertices = welded.kept_vertices;
+  const auto& kept = welded.kept;
+  const auto& pinned = welded.pinned;
   // Open borders stay where they are (the ground's edge, a facade's rim), and
   // so do the corners of the faces OpenMesh refused.
   for (auto v : mesh.vertices())

@@ -32,25 +32,11 @@ static VehicleModel simplify_once(const VehicleModel& model, double ratio, doubl
     if (part.triangles.size() < 8) continue;
     // Weld by position first: seams (UV, normals) would otherwise look like
     // borders and stay locked.
-    OM mesh;
-    OpenMeshWelder welder(mesh);
-    std::vector<Tri> kept;  // faces OpenMesh cannot hold (non-manifold): left as they are
-    std::vector<Vec3> kept_vertices;
-    std::vector<OM::VertexHandle> pinned;  // corners of kept faces: moving them would orphan those faces
-    for (const auto& t : part.triangles) {
-      std::array<OM::VertexHandle, 3> vh;
-      if (!welder.add(part.vertices[t[0]], part.vertices[t[1]], part.vertices[t[2]], vh)) {
-        for (auto h : vh) pinned.push_back(h);
-        const auto base = static_cast<std::uint32_t>(kept_vertices.size());
-        for (auto v : t) kept_vertices.push_back(part.vertices[v]);
-        kept.push_back({base, base + 1, base + 2});
-      }
-    }
-    mesh.request_vertex_status();
-    mesh.request_edge_status();
-    mesh.request_face_status();
-    mesh.request_face_normals();
-    mesh.update_face_normals();
+    WeldedMesh welded(part.vertices, part.triangles);
+    OM& mesh = welded.mesh;
+    const auto& kept_vertices = welded.kept_vertices;
+    const auto& kept = welded.kept;
+    const auto& pinned = welded.pinned;
     // The part's border is a material boundary (or the model's own hole):
     // locking it, and every contact with another part, keeps both, and with
     // them the closedness of the whole.

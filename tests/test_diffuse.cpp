@@ -17,6 +17,7 @@
 #include <random>
 #include <vector>
 
+#include "closed_forms.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;
@@ -35,34 +36,8 @@ const double kLambda = kC / kF;
 constexpr double kDeg = kPi / 180;
 
 // Gauss-Legendre nodes on [-1, 1] by Newton's iteration on P_n.
-struct GaussLegendre {
-  std::vector<double> x, w;
-  explicit GaussLegendre(int n) {
-    x.resize(n);
-    w.resize(n);
-    for (int i = 0; i < n; ++i) {
-      double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0;
-      for (int it = 0; it < 100; ++it) {
-        double p0 = 1, p1 = z;
-        for (int j = 2; j <= n; ++j) {
-          const double p2 = ((2.0 * j - 1) * z * p1 - (j - 1.0) * p0) / j;
-          p0 = p1;
-          p1 = p2;
-        }
-        dp = n * (z * p1 - p0) / (z * z - 1);
-        const double dz = p1 / dp;
-        z -= dz;
-        if (std::fabs(dz) < 1e-16) break;
-      }
-      x[i] = z;
-      w[i] = 2 / ((1 - z * z) * dp * dp);
-    }
-  }
-};
-const GaussLegendre& gl20() {
-  static const GaussLegendre g(20);
-  return g;
-}
+using closed_form::GaussLegendre;
+using closed_form::gl20;
 // Nodes and weights of a composite 20-point rule over [a, b].
 void composite(double a, double b, int panels, std::vector<double>& x, std::vector<double>& w) {
   const auto& g = gl20();

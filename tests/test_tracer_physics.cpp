@@ -10,6 +10,7 @@
 #include <random>
 #include <set>
 
+#include "closed_forms.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;
@@ -39,27 +40,10 @@ const cd kGround = eta_p2040(15, -0.1, 0.035, 1.63);      // medium dry ground
 const cd kConcrete = eta_p2040(5.24, 0, 0.0462, 0.7822);  // concrete
 const cd kGlass = eta_p2040(6.31, 0, 0.0036, 1.3394);     // glass
 
-// Fresnel (P.2040 eqs. 31): air / half space.
-cd r_te(cd eta, double c) {
-  const cd s = std::sqrt(eta - (1 - c * c));
-  return (c - s) / (c + s);
-}
-cd r_tm(cd eta, double c) {
-  const cd s = std::sqrt(eta - (1 - c * c));
-  return (eta * c - s) / (eta * c + s);
-}
-// Single-layer slab (P.2040 eqs. 43): reflection / transmission of thickness d.
-struct Slab {
-  cd r, t;
-};
-Slab slab(cd eta, double d, double c, bool te) {
-  const cd rp = te ? r_te(eta, c) : r_tm(eta, c);
-  const cd q = 2 * kPi * d / kLambda * std::sqrt(eta - (1 - c * c));
-  const double q0 = 2 * kPi * d / kLambda * c;
-  const cd e2 = std::exp(cd(0, -2) * q);
-  const cd den = 1.0 - rp * rp * e2;
-  return {rp * (1.0 - e2) / den, (1.0 - rp * rp) * std::exp(cd(0, -1) * (q - q0)) / den};
-}
+using closed_form::r_te;
+using closed_form::r_tm;
+using closed_form::Slab;
+Slab slab(cd eta, double d, double c, bool te) { return closed_form::slab(eta, d, c, te, kLambda); }
 
 // Geometrical optics against its closed forms: diffraction and diffuse
 // scattering (test_diffraction, test_diffuse) are off, every path is kept.
