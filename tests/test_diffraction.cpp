@@ -732,7 +732,11 @@ void expect_continuous(const tracer::TraceScene& scene, const Vec3& tx, const st
     level[i] = db20(std::abs(a));
     if (i > 0) {
       worst = std::max(worst, std::fabs(level[i] - level[i - 1]));
-      EXPECT_LT(std::fabs(level[i] - level[i - 1]), 0.5)
+      // 1 mm steps move the smooth total by at most ~0.12 dB here; a
+      // coefficient mismatch at the boundary (rough faces once reflected
+      // sqrt(1 - S^2) in the specular path but not in the UTD term: a
+      // 0.45 dB step) must not fit under the bound.
+      EXPECT_LT(std::fabs(level[i] - level[i - 1]), 0.25)
           << what << ": " << level[i - 1] << " dB at " << offs[i - 1] << " m -> " << level[i] << " dB at " << offs[i]
           << " m";
     }

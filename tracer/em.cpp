@@ -412,7 +412,8 @@ cdouble cot_f(int sign, double beta, double n, double kL) {
 }  // namespace
 
 DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double beta0, double L, double k,
-                                  const RadioMaterial* face0, const RadioMaterial* face_n) {
+                                  const RadioMaterial* face0, const RadioMaterial* face_n, double keep0,
+                                  double keep_n) {
   const double kL = k * L;
   const double sb = std::sin(beta0);
   const cdouble pre = -std::polar(1.0, -kPi / 4) / (2 * n * std::sqrt(2 * kPi * k) * sb);
@@ -435,8 +436,10 @@ DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double b
     const TeTm x = at(a), y = at(b);
     return {0.5 * (x.te + y.te), 0.5 * (x.tm + y.tm)};
   };
-  const TeTm r0 = refl(face0, phi_i, phi_d);
-  const TeTm rn = refl(face_n, n * kPi - phi_d, n * kPi - phi_i);
+  TeTm r0 = refl(face0, phi_i, phi_d);
+  TeTm rn = refl(face_n, n * kPi - phi_d, n * kPi - phi_i);
+  r0 = {keep0 * r0.te, keep0 * r0.tm};
+  rn = {keep_n * rn.te, keep_n * rn.tm};
   return {pre * (t1 + t2 + r0.te * t3 + rn.te * t4), pre * (t1 + t2 + r0.tm * t3 + rn.tm * t4)};
 }
 

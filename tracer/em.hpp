@@ -145,8 +145,11 @@ std::pair<double, double> fresnel_cs(double x);
 struct DiffractionCoefficients {
   cdouble soft, hard;
 };
+// keep0 / keep_n scale the faces' reflection coefficients (rough faces:
+// sqrt(1 - S^2), as in their specular reflections).
 DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double beta0, double L, double k,
-                                  const RadioMaterial* face0, const RadioMaterial* face_n);
+                                  const RadioMaterial* face0, const RadioMaterial* face_n, double keep0 = 1.0,
+                                  double keep_n = 1.0);
 
 enum class AntennaPattern { isotropic, short_dipole, halfwave_dipole };
 enum class Polarization { V, H };

@@ -87,7 +87,7 @@ double max_range_m(const TracerConfig& t, const RadioConfig& r) {
 }
 
 Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const RadioConfig& radio,
-                                   const std::map<std::string, MaterialOverride>& overrides)
+                                   const std::map<std::string, MaterialOverride>& overrides, bool rough)
     : radio_(radio) {
   for (const auto& name : names) {
     auto it = overrides.find(name);
@@ -96,6 +96,8 @@ Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const 
     const double t = std::max(std::abs(c.t.te), std::abs(c.t.tm));
     opaque_.push_back(t < 1e-12);
     normal_loss_db_.push_back(t > 0 ? -20 * std::log10(t) : 1e300);
+    const double S = materials_.back().scattering.s;
+    keep_.push_back(rough ? std::sqrt(1 - S * S) : 1.0);
   }
 }
 
@@ -240,7 +242,7 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
       // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
       // scattered part is traced (effective roughness energy partition).
       const double S = config.diffuse ? em.material(mat).scattering.s : 0.0;
-      const double keep = S > 0 ? std::sqrt(1 - S * S) : 1.0;
+      const double keep = std::sqrt(1 - S * S);
       e = combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, ep_in), cross(es, k_out));
     } else {
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
@@ -326,8 +328,11 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   const double k = 2 * kPi / lambda;
   const double beta0 = std::acos(std::clamp(dot(edge.e, s_in), -1.0, 1.0));
   const double L = sd * sp * sin_b * sin_b / (sd + sp);
+  // Rough faces reflect sqrt(1 - S^2) of the smooth field, in the UTD terms
+  // too, so the total stays continuous across reflection boundaries.
   const auto D = utd_wedge(edge.n, phi_i, phi_d, beta0, L, k, &em.material(edge.material0),
-                           &em.material(edge.material_n));
+                           &em.material(edge.material_n), em.specular_keep(edge.material0),
+                           em.specular_keep(edge.material_n));
   // Edge-fixed polarisation bases (Kouyoumjian and Pathak).
   const Vec3 phi_in = -1.0 * normalize(cross(edge.e, s_in));
   const Vec3 beta_in = cross(s_in, phi_in);
@@ -666,7 +671,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     for (double c : n.forward)
       if (!std::isfinite(c)) throw std::invalid_argument("node " + n.id + ": orientation is not finite");
   }
-  const Electromagnetics em(scene.material_names(), radio, cfg.materials);
+  const Electromagnetics em(scene.material_names(), radio, cfg.materials, cfg.diffuse);
   const auto n = static_cast<std::uint32_t>(nodes.size());
   const double range = max_range_m(cfg, radio);
   Snapshot snap;

@@ -66,8 +66,11 @@ struct Snapshot {
 // used by the scene whose P.2040 range excludes the carrier).
 class Electromagnetics {
  public:
+  // `rough`: diffuse scattering is traced, so specular reflections keep
+  // sqrt(1 - S^2) of their field (specular_keep), in reflected and
+  // diffracted paths alike.
   Electromagnetics(const std::vector<std::string>& material_names, const RadioConfig& radio,
-                   const std::map<std::string, MaterialOverride>& overrides);
+                   const std::map<std::string, MaterialOverride>& overrides, bool rough = false);
   const RadioMaterial& material(std::uint16_t i) const { return materials_.at(i); }
   SlabCoefficients coefficients(std::uint16_t i, double cos_theta) const;
   // Half spaces and good conductors: nothing gets through.
@@ -75,6 +78,7 @@ class Electromagnetics {
   // Loss of the stronger polarisation through the slab at normal incidence (dB).
   double normal_transmission_loss_db(std::uint16_t i) const { return normal_loss_db_.at(i); }
   double wavelength() const { return kSpeedOfLight / radio_.frequency_hz; }
+  double specular_keep(std::uint16_t i) const { return keep_.at(i); }
   const RadioConfig& radio() const { return radio_; }
 
  private:
@@ -82,6 +86,7 @@ class Electromagnetics {
   std::vector<RadioMaterial> materials_;
   std::vector<bool> opaque_;
   std::vector<double> normal_loss_db_;
+  std::vector<double> keep_;
 };
 
 // Traces all pairs of `nodes` in the scene's current frame. Deterministic for
