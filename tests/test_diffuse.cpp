@@ -98,8 +98,6 @@ Vec3 theta_hat(const Vec3& d) {
   return {std::cos(th) * std::cos(ph), std::cos(th) * std::sin(ph), -std::sin(th)};
 }
 
-double db(double x) { return 10 * std::log10(x); }
-
 // A horizontal plate z = 0 over [-h, h]^2 (normal +z), no ground.
 meshkit::Scene plate_scene(double h, const std::string& material) {
   meshkit::Scene s;
@@ -268,12 +266,16 @@ TEST(Diffuse, ScatteringPatternsAreNormalisedAndOneSided) {
       for (int k = 0; k < 20; ++k) {
         Vec3 out = random_unit();
         const double c = tracer::dot(out, front);
-        if (c < 0) EXPECT_EQ(tracer::scattering_pattern(sc, k_in, out, n_any), 0.0);
+        if (c < 0) {
+          EXPECT_EQ(tracer::scattering_pattern(sc, k_in, out, n_any), 0.0);
+        }
         if (c < 0) out = -1.0 * out;
         const double cs = tracer::dot(out, front);
         const double f = tracer::scattering_pattern(sc, k_in, out, n_any);
         EXPECT_DOUBLE_EQ(f, tracer::scattering_pattern(sc, k_in, out, -1.0 * n_any));
-        if (sc.lobe == tracer::ScatteringLobe::lambertian) EXPECT_NEAR(f, cs / kPi, 1e-12);
+        if (sc.lobe == tracer::ScatteringLobe::lambertian) {
+          EXPECT_NEAR(f, cs / kPi, 1e-12);
+        }
         if (sc.lobe == tracer::ScatteringLobe::directive) {
           const double expect =
               std::pow((1 + tracer::dot(out, spec)) / 2, sc.alpha_r) / lobe_integral_ref(sc.alpha_r, theta_i);
@@ -328,7 +330,9 @@ TEST(Diffuse, LambertianPlateMatchesRadarEquation) {
   EXPECT_NEAR(p.diffuse / expect, 1.0, 0.03);
   EXPECT_EQ(snap.stats.diffuse_paths, p.n_diffuse);
   // S = 1: nothing is left for the specular reflection.
-  if (p.specular) EXPECT_EQ(std::norm(p.specular->a), 0.0);
+  if (p.specular) {
+    EXPECT_EQ(std::norm(p.specular->a), 0.0);
+  }
   // The direct path is untouched.
   ASSERT_TRUE(p.direct);
   const double d = tracer::norm(rx - tx);

@@ -241,8 +241,7 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
       const Vec3 k_out = k_in - (2 * dot(k_in, p.normal)) * p.normal;
       // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
       // scattered part is traced (effective roughness energy partition).
-      const double S = config.diffuse ? em.material(mat).scattering.s : 0.0;
-      const double keep = std::sqrt(1 - S * S);
+      const double keep = em.specular_keep(mat);
       e = combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, ep_in), cross(es, k_out));
     } else {
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
@@ -492,29 +491,31 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       const Vec3 p = st.o + hit.t * st.d;
       const auto mat = scene.material(hit.face);
       const RadioMaterial& material = em.material(mat);
-      const double s_coef = scatter ? material.scattering.s : 0.0;
+      const double s_coef = scatter ? material.scattering.s : 0.0;  // scatter implies em's rough surfaces
       const bool can_scatter = s_coef > 0 && st.seq.n < cfg.max_depth;
       const bool can_reflect = cfg.specular && st.seq.n < cfg.max_depth;
       const bool can_transmit = cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat);
       Plane plane;
-      SlabCoefficients coef{};
-      Vec3 es{0, 0, 0}, ep_in{0, 0, 0};
-      double cos_theta = 0;
       if (scatter || can_reflect) plane = scene.plane(hit.face);
+      const Vec3 k_out = st.d - (2 * dot(st.d, plane.normal)) * plane.normal;
+      // With diffuse on, the ray tube carries its field: the slab
+      // coefficients here, the field a smooth surface would reflect, and
+      // dL/dt up to this hit.
+      SlabCoefficients coef{};
+      Vec3 es{0, 0, 0}, ep_in{0, 0, 0}, v_surf{0, 0, 0};
+      CVec3 e_ref{};
+      double dl_in = 0;
       if (scatter) {
-        cos_theta = std::fabs(dot(st.d, plane.normal));
-        coef = em.coefficients(mat, cos_theta);
+        coef = em.coefficients(mat, std::fabs(dot(st.d, plane.normal)));
         es = te_basis(st.d, plane.normal);
         ep_in = cross(es, st.d);
+        e_ref = combine(coef.r.te * cdot(st.field, es), es, coef.r.tm * cdot(st.field, ep_in), cross(es, k_out));
+        v_surf = scene.velocity(hit.face);
+        dl_in = st.dl_dt + dot(st.d, v_surf - st.v_prev);
       }
-      const Vec3 k_out = can_reflect || can_scatter ? st.d - (2 * dot(st.d, plane.normal)) * plane.normal : Vec3{};
       if (can_scatter) {
-        // The field a smooth surface would reflect; S^2 of its power is
-        // scattered, (1 - K_x) in its polarisation and K_x across it.
-        const CVec3 e_ref =
-            combine(coef.r.te * cdot(st.field, es), es, coef.r.tm * cdot(st.field, ep_in), cross(es, k_out));
-        const Vec3 v_surf = scene.velocity(hit.face);
-        const double dl_in = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+        // S^2 of the smooth reflection's power is scattered, (1 - K_x) in
+        // its polarisation and K_x across it.
         const double len_in = st.len + hit.t;
         const Scattering& sc = material.scattering;
         for (std::uint32_t j : diffuse->rx) {
@@ -575,8 +576,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           next.leaving = hit.face;
           if (scatter) {
             next.field = combine(coef.t.te * cdot(st.field, es), es, coef.t.tm * cdot(st.field, ep_in), ep_in);
-            const Vec3 v_surf = scene.velocity(hit.face);
-            next.dl_dt = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+            next.dl_dt = dl_in;
             next.v_prev = v_surf;
           }
           stack.push_back(next);
@@ -591,11 +591,9 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         next.leaving = hit.face;
         if (scatter) {
           next.points[st.seq.n] = p;
-          const double keep = std::sqrt(1 - s_coef * s_coef);
-          next.field = combine(keep * coef.r.te * cdot(st.field, es), es, keep * coef.r.tm * cdot(st.field, ep_in),
-                               cross(es, k_out));
-          const Vec3 v_surf = scene.velocity(hit.face);
-          next.dl_dt = st.dl_dt + dot(st.d, v_surf - st.v_prev);
+          const double keep = em.specular_keep(mat);
+          next.field = {keep * e_ref[0], keep * e_ref[1], keep * e_ref[2]};
+          next.dl_dt = dl_in;
           next.v_prev = v_surf;
         }
         next.seq.faces[next.seq.n++] = hit.face;
@@ -649,9 +647,7 @@ std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, cons
       const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
       const Vec3 v = w - dot(w, e.e) * e.e;
       if (norm(p - (e.a + z * e.e)) > range) continue;
-      double phi = std::atan2(dot(v, e.n0), dot(v, e.t0));
-      if (phi < 0) phi += 2 * kPi;
-      if (phi <= e.n * kPi) seen[i].push_back(k);
+      if (edge_angle(e, v) <= e.n * kPi) seen[i].push_back(k);
     }
   });
   return seen;

@@ -104,6 +104,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
 // The exact path from `from` to `to` reflecting on `faces` in order, or
 // nullopt when it does not exist (off a face, blocked, or over the slab cap:
 // `over_cap` says which). Exposed for tests (reciprocity, closed forms).
+// Reflections keep em.specular_keep() of their field (rough surfaces).
 std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
                                  const Node& from, const Node& to, const std::vector<FaceRef>& faces,
                                  bool* over_cap = nullptr, std::uint64_t* rays = nullptr);
