@@ -297,6 +297,12 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["diffraction_paths"] = static_cast<double>(snap.stats.diffraction_paths);
   state.counters["diffuse_paths"] = static_cast<double>(snap.stats.diffuse_paths);
   state.counters["edges"] = static_cast<double>(scene->edges().size());
+  std::size_t vehicle_faces = 0;
+  for (std::uint32_t v = 1; v <= scene->vehicles().size(); ++v) vehicle_faces += scene->face_count(v);
+  state.counters["image_sources"] = static_cast<double>(snap.stats.image_sources);
+  state.counters["image_tests"] = static_cast<double>(snap.stats.image_tests);
+  state.counters["static_faces"] = static_cast<double>(scene->face_count(0));
+  state.counters["vehicle_faces"] = static_cast<double>(vehicle_faces);
   state.counters["LOS"] = static_cast<double>(los);
   state.counters["NLOSV"] = static_cast<double>(nlosv);
   state.counters["NLOS"] = static_cast<double>(nlos);

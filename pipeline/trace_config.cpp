@@ -44,9 +44,10 @@ TraceSettings load_trace_config(const std::string& path) {
       else if (key == "sbr_transmission_loss_db") t.sbr_transmission_loss_db = number(path, full, node);
       else if (key == "candidates") {
         const std::string v = text(path, full, node);
-        if (v == "sbr") t.candidates = tracer::CandidateSearch::sbr;
+        if (v == "image") t.candidates = tracer::CandidateSearch::image;
+        else if (v == "sbr") t.candidates = tracer::CandidateSearch::sbr;
         else if (v == "exhaustive") t.candidates = tracer::CandidateSearch::exhaustive;
-        else throw ConfigError(where(path, full, node) + ": expected \"sbr\" or \"exhaustive\"");
+        else throw ConfigError(where(path, full, node) + ": expected \"image\", \"sbr\" or \"exhaustive\"");
       } else if (key == "diffuse") t.diffuse = boolean(path, full, node);
       else if (key == "diffraction") t.diffraction = boolean(path, full, node);
       else if (key == "path_threshold_db") t.path_threshold_db = number(path, full, node);
@@ -126,7 +127,9 @@ nlohmann::json TraceSettings::to_json() const {
             {"refraction", tracer.refraction},
             {"rays_per_source", tracer.rays_per_source},
             {"reception_radius_factor", tracer.reception_radius_factor},
-            {"candidates", tracer.candidates == tracer::CandidateSearch::sbr ? "sbr" : "exhaustive"},
+            {"candidates", tracer.candidates == tracer::CandidateSearch::image ? "image"
+                           : tracer.candidates == tracer::CandidateSearch::sbr ? "sbr"
+                                                                              : "exhaustive"},
             {"max_transmissions", tracer.max_transmissions},
             {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db},
             {"diffuse", tracer.diffuse},

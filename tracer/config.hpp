@@ -21,7 +21,11 @@ struct RadioConfig {
 };
 
 enum class CandidateSearch {
-  sbr,        // shoot-and-bounce from every node over a Fibonacci lattice (default)
+  // Exact image search (every face at order 1, every pair of static faces
+  // at order 2: tracer/image_search.hpp) plus shoot-and-bounce for the rest
+  // (order-2 sequences touching a vehicle, orders >= 3). Default.
+  image,
+  sbr,        // shoot-and-bounce only, from every node over a Fibonacci lattice
   exhaustive  // every face sequence up to max_depth: small scenes and tests only
 };
 
@@ -34,7 +38,7 @@ struct TracerConfig {
   // Reception sphere radius = factor * angular ray spacing * unfolded length.
   // Candidates are refined exactly, so a generous sphere only costs time.
   double reception_radius_factor = 1.0;
-  CandidateSearch candidates = CandidateSearch::sbr;
+  CandidateSearch candidates = CandidateSearch::image;
   // Slabs a path may cross (a vehicle's two windows, a building's two
   // walls); an exact path crossing more is dropped and counted in its pair
   // record (never silently).

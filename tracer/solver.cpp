@@ -11,6 +11,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "tracer/image_search.hpp"
+
 namespace raysweep::tracer {
 
 namespace {
@@ -204,7 +206,21 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
     const double t0 = m > 0 ? 0 : scene.slack(a, 0) * 0.1;
     const double tfar = ends_on_face ? len + end_tol : len - end_tol;
     if (tfar <= t0) return std::nullopt;
-    if (!scene.all_hits(a, dir, t0, tfar, hits, 4096, skip)) return std::nullopt;
+    // Most candidates of the exact image search run through buildings:
+    // stop at the first opaque face, or once the slab cap is exceeded,
+    // instead of listing every wall to the end of a long segment.
+    const int remaining = config.refraction ? std::max(0, config.max_transmissions - transmissions) : 0;
+    if (!scene.all_hits(a, dir, t0, tfar, hits, static_cast<std::size_t>(remaining) + 3, skip)) {
+      int before_end = 0;
+      for (const auto& h : hits) before_end += h.t < len - end_tol;
+      if (rays) *rays += hits.size() + 1;
+      if (before_end > remaining) {
+        if (over_cap && config.refraction) *over_cap = true;
+        return std::nullopt;
+      }
+      // Several faces meet at the end point: list them all.
+      if (!scene.all_hits(a, dir, t0, tfar, hits, 4096, skip)) return std::nullopt;
+    }
     if (rays) *rays += hits.size() + 1;
     bool reached = !ends_on_face;
     for (const auto& h : hits) {
@@ -213,7 +229,7 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
         break;
       }
       if (h.t >= len - end_tol) continue;  // at the end point, not on the way
-      if (!config.refraction) return std::nullopt;
+      if (!config.refraction || em.opaque(scene.material(h.face))) return std::nullopt;
       events.push_back(Event{false, h.face, a + h.t * dir, dir});
       ++transmissions;
     }
@@ -707,7 +723,28 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   std::vector<std::map<DiffuseKey, DiffuseAcc>> diffuse(cfg.diffuse ? pairs.size() : 0);
 
   std::uint64_t search_rays = 0;
-  const bool sbr_specular = cfg.specular && cfg.max_depth > 0 && cfg.candidates == CandidateSearch::sbr;
+  const bool image = cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::image;
+  const bool sbr_specular = cfg.specular && cfg.max_depth > 0 && cfg.candidates != CandidateSearch::exhaustive;
+  if (image) {
+    // Each in-range pair from its lower end; sources in index order.
+    std::vector<std::vector<std::uint32_t>> higher(n);
+    for (std::size_t p = 0; p < pairs.size(); ++p)
+      if (in_range[p]) higher[pairs[p].first].push_back(pairs[p].second);
+    std::vector<std::vector<ImageCandidate>> found(n);
+    std::vector<ImageSearchStats> istats(n);
+    const ImageFaces faces = image_faces(scene);
+    tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
+      if (higher[i].empty()) return;
+      std::sort(higher[i].begin(), higher[i].end());
+      image_candidates(scene, faces, nodes, i, higher[i], std::min(cfg.max_depth, 2), found[i], &istats[i]);
+    });
+    for (const auto& st : istats) {
+      snap.stats.image_sources += st.image_sources;
+      snap.stats.image_tests += st.tests;
+    }
+    for (std::uint32_t i = 0; i < n; ++i)
+      for (auto& c : found[i]) candidates[slot.at(static_cast<std::uint64_t>(i) << 32 | c.rx)].push_back(std::move(c.faces));
+  }
   const bool sbr_diffuse = cfg.diffuse && cfg.max_depth > 0;
   if (cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::exhaustive) {
     std::vector<std::vector<FaceRef>> all;
@@ -731,7 +768,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       const std::size_t c = task % chunks;
       TaskOut& out = tasks[task];
       TracerConfig local = cfg;
-      local.specular = cfg.specular && cfg.candidates == CandidateSearch::sbr;
+      local.specular = sbr_specular;
       shoot_from(scene, em, local, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk),
                  out.found, out.rays, cfg.diffuse ? &targets[src] : nullptr, &out.bins);
       if (!sbr_specular) out.found.clear();
@@ -742,6 +779,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       auto& out = tasks[task];
       search_rays += out.rays;
       for (auto& k : out.found) {
+        // The image search already enumerated these completely.
+        if (image && (k.faces.size() == 1 || (k.faces.size() == 2 && !scene.is_vehicle(k.faces[0]) &&
+                                              !scene.is_vehicle(k.faces[1]))))
+          continue;
         const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
         const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
         if (it == slot.end() || !in_range[it->second]) continue;

@@ -55,6 +55,7 @@ struct SnapshotStats {
   std::uint64_t dropped_threshold = 0;
   std::uint64_t out_of_range_pairs = 0;
   std::uint64_t diffraction_paths = 0, diffuse_paths = 0;  // kept paths ending in those interactions
+  std::uint64_t image_sources = 0, image_tests = 0;         // exact image search (tracer/image_search.hpp)
 };
 
 struct Snapshot {

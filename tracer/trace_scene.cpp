@@ -57,6 +57,12 @@ struct TraceScene::Shape {
   std::vector<double> face_flatness;
   std::vector<std::uint16_t> face_material;
   std::vector<std::uint32_t> face_object;
+  // Triangles of each face (CSR) with their in-plane edge constraints:
+  // p is inside triangle t when dot(edge_normal[3t + k], p) >= edge_offset[3t + k] for k = 0..2.
+  std::vector<std::uint32_t> face_tri_begin, face_tris;
+  std::vector<Vec3> edge_normal;
+  std::vector<double> edge_offset;
+  std::vector<Sphere> face_sphere;
   Vec3 antenna{0, 0, 0};
   RTCScene scene = nullptr;
 };
@@ -139,6 +145,51 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
     for (auto vi : s.triangles[t])
       s.face_flatness[f] =
           std::max(s.face_flatness[f], std::fabs(dot(s.face_plane[f].normal, s.vertices[vi]) - s.face_plane[f].offset));
+  }
+
+  // Triangle membership and edge constraints for face_contains.
+  s.face_tri_begin.assign(nf + 1, 0);
+  for (auto f : s.tri_face) ++s.face_tri_begin[f + 1];
+  for (std::size_t f = 0; f < nf; ++f) s.face_tri_begin[f + 1] += s.face_tri_begin[f];
+  s.face_tris.resize(s.triangles.size());
+  {
+    std::vector<std::uint32_t> fill(s.face_tri_begin.begin(), s.face_tri_begin.end() - 1);
+    for (std::uint32_t t = 0; t < s.triangles.size(); ++t) s.face_tris[fill[s.tri_face[t]]++] = t;
+  }
+  s.edge_normal.assign(3 * s.triangles.size(), Vec3{0, 0, 0});
+  s.edge_offset.assign(3 * s.triangles.size(), 1e300);  // degenerate triangles contain nothing
+  for (std::size_t t = 0; t < s.triangles.size(); ++t) {
+    const auto& tri = s.triangles[t];
+    const Vec3 n = s.face_plane[s.tri_face[t]].normal;
+    const Vec3 a = s.vertices[tri[0]], b = s.vertices[tri[1]], c = s.vertices[tri[2]];
+    const double orient = dot(cross(b - a, c - a), n) >= 0 ? 1.0 : -1.0;
+    const Vec3 pts[3] = {a, b, c};
+    bool degenerate = false;
+    Vec3 en[3];
+    for (int k = 0; k < 3; ++k) {
+      en[k] = orient * cross(n, pts[(k + 1) % 3] - pts[k]);  // points into the triangle
+      if (norm(en[k]) < 1e-12) degenerate = true;
+      en[k] = normalize(en[k]);
+    }
+    if (degenerate) continue;
+    for (int k = 0; k < 3; ++k) {
+      s.edge_normal[3 * t + k] = en[k];
+      s.edge_offset[3 * t + k] = dot(en[k], pts[k]);
+    }
+  }
+  s.face_sphere.assign(nf, TraceScene::Sphere{});
+  {
+    std::vector<Vec3> lo(nf, Vec3{1e300, 1e300, 1e300}), hi(nf, Vec3{-1e300, -1e300, -1e300});
+    for (std::size_t t = 0; t < s.triangles.size(); ++t)
+      for (auto vi : s.triangles[t])
+        for (int k = 0; k < 3; ++k) {
+          lo[s.tri_face[t]][k] = std::min(lo[s.tri_face[t]][k], s.vertices[vi][k]);
+          hi[s.tri_face[t]][k] = std::max(hi[s.tri_face[t]][k], s.vertices[vi][k]);
+        }
+    for (std::size_t f = 0; f < nf; ++f) {
+      s.face_sphere[f].centre = 0.5 * (lo[f] + hi[f]);
+      s.face_sphere[f].radius = 0.5 * norm(hi[f] - lo[f]);
+    }
   }
 
   s.scene = rtcNewScene(device);
@@ -448,6 +499,39 @@ Vec3 TraceScene::velocity(const FaceRef& f) const {
 std::size_t TraceScene::face_count(std::uint32_t instance) const {
   if (instance == 0) return impl_->world.face_plane.size();
   return impl_->models[vehicles_.at(instance - 1).model]->face_plane.size();
+}
+
+bool TraceScene::face_contains(const FaceRef& f, const Vec3& p, double tol) const {
+  const auto& d = *impl_;
+  const Shape& s = d.shape_of(f, vehicles_);
+  Vec3 q = p;
+  if (f.instance > 0) {  // into the model frame
+    const std::size_t v = f.instance - 1;
+    const Vec3 w = p - vehicles_[v].position;
+    const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
+    q = Vec3{c * w[0] + sn * w[1], -sn * w[0] + c * w[1], w[2]};
+  }
+  const Sphere& b = s.face_sphere[f.face];
+  const Vec3 w = q - b.centre;
+  if (dot(w, w) > (b.radius + tol) * (b.radius + tol)) return false;
+  for (std::uint32_t k = s.face_tri_begin[f.face]; k < s.face_tri_begin[f.face + 1]; ++k) {
+    const std::uint32_t t = s.face_tris[k];
+    if (dot(s.edge_normal[3 * t], q) >= s.edge_offset[3 * t] - tol &&
+        dot(s.edge_normal[3 * t + 1], q) >= s.edge_offset[3 * t + 1] - tol &&
+        dot(s.edge_normal[3 * t + 2], q) >= s.edge_offset[3 * t + 2] - tol)
+      return true;
+  }
+  return false;
+}
+
+TraceScene::Sphere TraceScene::face_sphere(const FaceRef& f) const {
+  const auto& d = *impl_;
+  const Sphere& b = d.shape_of(f, vehicles_).face_sphere[f.face];
+  if (f.instance == 0) return b;
+  const std::size_t v = f.instance - 1;
+  const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
+  const Vec3& m = b.centre;
+  return Sphere{Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + vehicles_[v].position, b.radius};
 }
 
 std::vector<std::string> TraceScene::object_names() const {

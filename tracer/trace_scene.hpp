@@ -111,6 +111,17 @@ class TraceScene {
   Vec3 velocity(const FaceRef& f) const;  // of the surface point (vehicle translation)
   std::size_t face_count(std::uint32_t instance) const;
 
+  // Face shape for the exact image search (tracer/image_search): whether a
+  // point near the face's plane projects inside one of its triangles, with
+  // `tol` metres to spare at the borders (so the test never rejects a point
+  // that the exact path's ray test would accept), and a bounding sphere.
+  bool face_contains(const FaceRef& f, const Vec3& p, double tol) const;
+  struct Sphere {
+    Vec3 centre{0, 0, 0};
+    double radius = 0;
+  };
+  Sphere face_sphere(const FaceRef& f) const;  // world frame
+
   // Tables the path records index: materials by name ("concrete", "glass"...),
   // objects: static objects first ("way/123", "ground"), then one per vehicle
   // of the current frame ("vehicle/<id>").
