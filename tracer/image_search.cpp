@@ -56,9 +56,53 @@ ImageFaces image_faces(const TraceScene& scene) {
       t.tol.push_back(2 * scene.slack(s.centre, s.radius) + 2 * scene.flatness(ref));
     }
     if (inst == 0) t.static_count = static_cast<std::uint32_t>(t.refs.size());
+    t.vehicle_begin.push_back(static_cast<std::uint32_t>(t.refs.size()));
   }
+  for (std::size_t v = 0; v < scene.vehicles().size(); ++v) t.vehicle_spheres.push_back(scene.vehicle_sphere(v));
+  for (std::uint32_t f = 0; f < t.static_count; ++f)
+    if (std::fabs(t.planes[f].normal[2]) > 0.999 && t.spheres[f].radius >= 25) t.ground.push_back(f);
   return t;
 }
+
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& seq, int vehicle_a,
+                    int vehicle_b) {
+  if (seq.size() == 1) return true;
+  if (seq.size() != 2) return false;
+  const bool v0 = scene.is_vehicle(seq[0]), v1 = scene.is_vehicle(seq[1]);
+  if (!v0 && !v1) return true;
+  if (v0 == v1) return false;  // two vehicle faces
+  const FaceRef& st = v0 ? seq[1] : seq[0];
+  const int vehicle = static_cast<int>((v0 ? seq[0] : seq[1]).instance) - 1;
+  return std::binary_search(faces.ground.begin(), faces.ground.end(), st.face) || vehicle == vehicle_a ||
+         vehicle == vehicle_b;
+}
+
+namespace {
+
+// Faces of vehicle v that can reflect from point `a` to point `b`: the
+// reflection point lies in the vehicle's sphere, so the directions to a and
+// b are within asin(R / distance) of those from its centre, and the face
+// normal within delta of their bisector (sin delta <= (alpha + beta) / |u_a + u_b|).
+// With an end inside the sphere every face is returned (cos_delta = -1).
+const std::vector<std::uint32_t>& faces_towards(const TraceScene& scene, const TraceScene::Sphere& sv, std::size_t v,
+                                                const Vec3& a, const Vec3& b, Vec3& bisector, double& cos_delta) {
+  const Vec3 wa = a - sv.centre, wb = b - sv.centre;
+  const double da = norm(wa), db = norm(wb);
+  cos_delta = -1;
+  bisector = Vec3{0, 0, 1};
+  if (da <= sv.radius || db <= sv.radius) return scene.vehicle_faces_near_normal(v, bisector, 10.0);
+  const Vec3 m = (1.0 / da) * wa + (1.0 / db) * wb;
+  const double lm = norm(m);
+  // asin(x) <= x pi / 2 on [0, 1].
+  const double eps = (kPi / 2) * (sv.radius / da + sv.radius / db);
+  if (eps >= lm) return scene.vehicle_faces_near_normal(v, bisector, 10.0);
+  bisector = (1.0 / lm) * m;
+  const double sin_delta = eps / lm;
+  cos_delta = std::sqrt(1 - sin_delta * sin_delta);
+  return scene.vehicle_faces_near_normal(v, bisector, std::asin(sin_delta));
+}
+
+}  // namespace
 
 namespace {
 
@@ -74,7 +118,7 @@ struct Receivers {
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
 // face". Returns whether any is marked.
-bool mark_crossings(const Receivers& rx, const Plane& pl, double plane_offset_rel, double ds, const Vec3& img,
+bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, double plane_offset_rel, double ds, const Vec3& img,
                     const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol, Receivers& scratch) {
   const double nx = pl.normal[0], ny = pl.normal[1], nz = pl.normal[2];
   const double ix = img[0], iy = img[1], iz = img[2];
@@ -82,7 +126,7 @@ bool mark_crossings(const Receivers& rx, const Plane& pl, double plane_offset_re
   const double r2 = (sphere.radius + tol) * (sphere.radius + tol);
   const std::size_t n = rx.size();
   unsigned any = 0;
-  for (std::size_t r = 0; r < n; ++r) {
+  for (std::size_t r = begin; r < n; ++r) {
     const double d = nx * rx.x[r] + ny * rx.y[r] + nz * rx.z[r] - plane_offset_rel;
     const double den = ds + d;  // ds and d share their sign when valid
     const double s = ds / (den != 0 ? den : 1.0);
@@ -113,10 +157,16 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   }
   scratch.hit.resize(rx.size());
   auto receiver = [&](std::size_t r) { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; };
-  auto on_face = [&](std::size_t f, const Vec3& p) { return scene.face_contains(faces.refs[f], p, faces.tol[f]); };
+  auto on_face = [&](std::size_t f, const Vec3& p) {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  };
 
-  // Order 1: every face of every instance.
-  for (std::size_t f = 0; f < faces.refs.size(); ++f) {
+  const std::size_t higher_from =
+      static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin());
+  // Order 1, static faces (towards higher receivers).
+  for (std::size_t f = 0; f < faces.static_count; ++f) {
     const Plane& pl = faces.planes[f];
     const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
     const double ds = -off;                              // the source's signed distance
@@ -124,13 +174,131 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     const Vec3 img = (-2 * ds) * pl.normal;
     ++local.image_sources;
     local.tests += rx.size();
-    if (!mark_crossings(rx, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs, faces.tol[f], scratch))
+    if (!mark_crossings(rx, higher_from, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs, faces.tol[f], scratch))
       continue;
-    for (std::size_t r = 0; r < rx.size(); ++r) {
+    for (std::size_t r = higher_from; r < rx.size(); ++r) {
       if (!scratch.hit[r]) continue;
       const Vec3 xr = receiver(r);
       const double d = dot(pl.normal, xr) - pl.offset;
       if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d))) out.push_back({receivers[r], {faces.refs[f]}});
+    }
+  }
+
+  // The reflection on face f (world plane) from point `from` to receiver r,
+  // appended when its point lies on the face.
+  auto reflect_to = [&](std::size_t f, const Vec3& from, std::size_t r, const Vec3& xr, Vec3& point) {
+    const Plane& pl = faces.planes[f];
+    const double df = dot(pl.normal, from) - pl.offset;
+    const double d = dot(pl.normal, xr) - pl.offset;
+    if (!(df * d > 0)) return false;
+    ++local.tests;
+    (void)r;
+    point = crossing(from - (2 * df) * pl.normal, -df, xr, d);
+    return on_face(f, point);
+  };
+
+  // Order 1, vehicle faces, through their normals (towards higher receivers).
+  for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+    const auto& sv = faces.vehicle_spheres[v];
+    const std::uint32_t base = faces.vehicle_begin[v];
+    for (std::size_t r = higher_from; r < rx.size(); ++r) {
+      const Vec3 xr = receiver(r);
+      Vec3 m;
+      double cos_delta = 0;
+      const auto& list = faces_towards(scene, sv, v, xs, xr, m, cos_delta);
+      ++local.image_sources;
+      for (auto lf : list) {
+        const std::size_t f = base + lf;
+        if (std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
+        Vec3 p;
+        if (reflect_to(f, xs, r, xr, p)) out.push_back({receivers[r], {faces.refs[f]}});
+      }
+    }
+  }
+
+  // Order 2, ground then vehicle (towards every receiver: from the other
+  // end it is vehicle then ground).
+  for (std::uint32_t g : max_order >= 2 ? faces.ground : std::vector<std::uint32_t>{}) {
+    const Plane& pg = faces.planes[g];
+    const double ds = dot(pg.normal, xs) - pg.offset;
+    if (ds == 0) continue;
+    const Vec3 i1 = xs - (2 * ds) * pg.normal;
+    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+      const auto& sv = faces.vehicle_spheres[v];
+      const double h = dot(pg.normal, sv.centre) - pg.offset;
+      if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
+      const std::uint32_t base = faces.vehicle_begin[v];
+      for (std::size_t r = 0; r < rx.size(); ++r) {
+        const Vec3 xr = receiver(r);
+        Vec3 m;
+        double cos_delta = 0;
+        const auto& list = faces_towards(scene, sv, v, i1, xr, m, cos_delta);
+        ++local.image_sources;
+        for (auto lf : list) {
+          const std::size_t f = base + lf;
+          if (std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
+          Vec3 q2;
+          if (!reflect_to(f, i1, r, xr, q2)) continue;
+          const double d2 = dot(pg.normal, q2) - pg.offset;
+          if (!(ds * d2 > 0)) continue;
+          if (on_face(g, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+        }
+      }
+    }
+  }
+
+  // Order 2, a static face then a vehicle carrying one of the pair's ends
+  // (towards every receiver, for the reverse order from the other end).
+  // Whether vehicle v can be in the beam reflected by static face f1.
+  auto in_beam = [&](std::uint32_t f1, const Vec3& i1, double ds, const Cone* beam, std::size_t v) {
+    const auto& sv = faces.vehicle_spheres[v];
+    Cone cv;
+    if (beam && cone_to(i1, sv, cv) && !cones_overlap(*beam, cv)) return false;
+    const Plane& p1 = faces.planes[f1];
+    const double h = dot(p1.normal, sv.centre) - p1.offset;
+    return ds > 0 ? h + sv.radius > 0 : h - sv.radius < 0;
+  };
+  auto static_then_vehicle = [&](std::uint32_t f1, const Vec3& i1, double ds, std::size_t v, std::size_t r) {
+    const auto& sv = faces.vehicle_spheres[v];
+    const Plane& p1 = faces.planes[f1];
+    const Vec3 xr = receiver(r);
+    Vec3 m;
+    double cos_delta = -1;
+    // The receiver's own vehicle: the faces its antenna sees (the normal
+    // cull is void there, the antenna being inside the vehicle's sphere).
+    const std::vector<std::uint32_t>* list = static_cast<int>(v) == nodes[receivers[r]].vehicle
+                                                 ? scene.faces_seen_from_mount(v, xr)
+                                                 : nullptr;
+    if (!list) list = &faces_towards(scene, sv, v, i1, xr, m, cos_delta);
+    ++local.image_sources;
+    const std::uint32_t base = faces.vehicle_begin[v];
+    for (auto lf : *list) {
+      const std::size_t f = base + lf;
+      if (cos_delta > -1 && std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
+      Vec3 q2;
+      if (!reflect_to(f, i1, r, xr, q2)) continue;
+      const double d2 = dot(p1.normal, q2) - p1.offset;
+      if (!(ds * d2 > 0)) continue;
+      if (on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[f1], faces.refs[f]}});
+    }
+  };
+  const int own = nodes[src].vehicle;
+  bool any_end_vehicle = own >= 0;
+  for (auto r : receivers) any_end_vehicle = any_end_vehicle || nodes[r].vehicle >= 0;
+  for (std::uint32_t f1 = 0; max_order >= 2 && any_end_vehicle && f1 < faces.static_count; ++f1) {
+    if (std::binary_search(faces.ground.begin(), faces.ground.end(), f1)) continue;  // done above for all vehicles
+    const Plane& p1 = faces.planes[f1];
+    const double ds = dot(p1.normal, xs) - p1.offset;
+    if (ds == 0) continue;
+    const Vec3 i1 = xs - (2 * ds) * p1.normal;
+    Cone beam;
+    const Cone* b = cone_to(i1, faces.spheres[f1], beam) ? &beam : nullptr;
+    const bool own_in_beam = own >= 0 && in_beam(f1, i1, ds, b, static_cast<std::size_t>(own));
+    for (std::size_t r = 0; r < rx.size(); ++r) {
+      if (own_in_beam) static_then_vehicle(f1, i1, ds, static_cast<std::size_t>(own), r);
+      const int theirs = nodes[receivers[r]].vehicle;
+      if (theirs >= 0 && theirs != own && in_beam(f1, i1, ds, b, static_cast<std::size_t>(theirs)))
+        static_then_vehicle(f1, i1, ds, static_cast<std::size_t>(theirs), r);
     }
   }
 
@@ -147,12 +315,9 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // through f1 (on the source's side of f1).
     Cone beam;
     const bool narrow = cone_to(i1, faces.spheres[f1], beam);
-    for (std::uint32_t f2 = 0; f2 < ns; ++f2) {
-      if (f2 == f1) continue;
+    // f2 must reach the source's side of f1.
+    for (std::uint32_t f2 : scene.static_faces_reaching(f1, ds > 0 ? 1 : -1)) {
       const auto& s2 = faces.spheres[f2];
-      // f2 must reach the source's side of f1.
-      const double h = dot(p1.normal, s2.centre) - p1.offset;
-      if (ds > 0 ? h + s2.radius <= 0 : h - s2.radius >= 0) continue;
       Cone c2;
       if (narrow && cone_to(i1, s2, c2) && !cones_overlap(beam, c2)) continue;
       const Plane& p2 = faces.planes[f2];
@@ -163,8 +328,8 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       local.tests += rx.size();
       // Relative to the source: I1 is at distance di from f2's plane.
       const double off2 = p2.offset - dot(p2.normal, xs);
-      if (!mark_crossings(rx, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch)) continue;
-      for (std::size_t r = 0; r < rx.size(); ++r) {
+      if (!mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch)) continue;
+      for (std::size_t r = higher_from; r < rx.size(); ++r) {
         if (!scratch.hit[r]) continue;
         const Vec3 xr = receiver(r);
         const double d = dot(p2.normal, xr) - p2.offset;

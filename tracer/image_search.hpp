@@ -8,8 +8,15 @@
 //   order 1: every face of the scene, static and vehicles;
 //   order 2: every pair of static faces (walls, roofs, ground; few and large),
 //            pruned by side tests and the beam each first face reflects.
-// Order-2 sequences touching a vehicle and orders >= 3 come from
-// shoot-and-bounce (solver.cpp), whose candidates are merged with these.
+//   order 2: every ground face (large horizontal static faces) with every
+//            vehicle face, in both orders (a car body's ground bounce), and
+//            every static face with every face of the vehicles carrying the
+//            pair's two antennas (a wall's echo off the car's own roof).
+// Vehicle faces are found through their normals: a vehicle reflects from
+// `a` to `b` only on faces whose normal lies within the angle its bounding
+// sphere subtends from both ends of the bisector of the two directions.
+// Other order-2 sequences touching a vehicle (walls, other vehicles) and
+// orders >= 3 come from shoot-and-bounce (solver.cpp), merged with these.
 #pragma once
 
 #include <cstdint>
@@ -37,12 +44,23 @@ struct ImageFaces {
   std::vector<TraceScene::Sphere> spheres;
   std::vector<double> tol;    // border tolerance of the on-face test
   std::uint32_t static_count = 0;
+  std::vector<std::uint32_t> vehicle_begin;  // first face of vehicle v in refs (size vehicles + 1)
+  std::vector<TraceScene::Sphere> vehicle_spheres;
+  std::vector<std::uint32_t> ground;         // static faces that are ground (horizontal, radius >= 25 m)
 };
+// True when the image search enumerates every sequence of this kind for a
+// pair whose ends ride vehicles `vehicle_a` and `vehicle_b` (-1: none).
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence,
+                    int vehicle_a, int vehicle_b);
 ImageFaces image_faces(const TraceScene& scene);
 
 // Face sequences of order 1..max_order (at most 2) from node `src` to each
-// node in `receivers` whose reflection points lie on their faces.
-// Deterministic: the output order depends only on the scene and the nodes.
+// node in `receivers` (sorted; lower and higher indices) whose reflection
+// points lie on their faces. Sequences that are their own reverse's
+// counterpart (order 1, static-static) are searched towards higher receivers
+// only; ground-vehicle sequences towards all, so that the other end's search
+// yields vehicle-ground. Deterministic: the output depends only on the scene
+// and the nodes.
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr);

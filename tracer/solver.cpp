@@ -725,25 +725,33 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   std::uint64_t search_rays = 0;
   const bool image = cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::image;
   const bool sbr_specular = cfg.specular && cfg.max_depth > 0 && cfg.candidates != CandidateSearch::exhaustive;
+  ImageFaces faces;
   if (image) {
-    // Each in-range pair from its lower end; sources in index order.
-    std::vector<std::vector<std::uint32_t>> higher(n);
+    // Every in-range partner of each node; sources in index order.
+    std::vector<std::vector<std::uint32_t>> partners(n);
     for (std::size_t p = 0; p < pairs.size(); ++p)
-      if (in_range[p]) higher[pairs[p].first].push_back(pairs[p].second);
+      if (in_range[p]) {
+        partners[pairs[p].first].push_back(pairs[p].second);
+        partners[pairs[p].second].push_back(pairs[p].first);
+      }
     std::vector<std::vector<ImageCandidate>> found(n);
     std::vector<ImageSearchStats> istats(n);
-    const ImageFaces faces = image_faces(scene);
+    faces = image_faces(scene);
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
-      if (higher[i].empty()) return;
-      std::sort(higher[i].begin(), higher[i].end());
-      image_candidates(scene, faces, nodes, i, higher[i], std::min(cfg.max_depth, 2), found[i], &istats[i]);
+      if (partners[i].empty()) return;
+      std::sort(partners[i].begin(), partners[i].end());
+      image_candidates(scene, faces, nodes, i, partners[i], std::min(cfg.max_depth, 2), found[i], &istats[i]);
     });
     for (const auto& st : istats) {
       snap.stats.image_sources += st.image_sources;
       snap.stats.image_tests += st.tests;
     }
     for (std::uint32_t i = 0; i < n; ++i)
-      for (auto& c : found[i]) candidates[slot.at(static_cast<std::uint64_t>(i) << 32 | c.rx)].push_back(std::move(c.faces));
+      for (auto& c : found[i]) {
+        if (c.rx < i) std::reverse(c.faces.begin(), c.faces.end());
+        const std::uint64_t key = static_cast<std::uint64_t>(std::min(i, c.rx)) << 32 | std::max(i, c.rx);
+        candidates[slot.at(key)].push_back(std::move(c.faces));
+      }
   }
   const bool sbr_diffuse = cfg.diffuse && cfg.max_depth > 0;
   if (cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::exhaustive) {
@@ -780,9 +788,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       search_rays += out.rays;
       for (auto& k : out.found) {
         // The image search already enumerated these completely.
-        if (image && (k.faces.size() == 1 || (k.faces.size() == 2 && !scene.is_vehicle(k.faces[0]) &&
-                                              !scene.is_vehicle(k.faces[1]))))
-          continue;
+        if (image && image_complete(scene, faces, k.faces, nodes[src].vehicle, nodes[k.other].vehicle)) continue;
         const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
         const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
         if (it == slot.end() || !in_range[it->second]) continue;

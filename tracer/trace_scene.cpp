@@ -46,7 +46,61 @@ RTCRayHit make_ray(const Vec3& o, const Vec3& dir, double tnear, double tfar) {
   return rh;
 }
 
+std::vector<Vec3> fibonacci_directions(int n) {
+  std::vector<Vec3> dirs(static_cast<std::size_t>(n));
+  const double golden = kPi * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / n;
+    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+    dirs[i] = Vec3{r * std::cos(golden * i), r * std::sin(golden * i), z};
+  }
+  return dirs;
+}
+
 }  // namespace
+
+namespace {
+
+// Octahedral map of unit directions onto a kCells x kCells grid.
+constexpr int kCells = 32;
+std::pair<int, int> octa_cell(const Vec3& d) {
+  const double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
+  double u = d[0] / l1, v = d[1] / l1;
+  if (d[2] < 0) {
+    const double uu = (1 - std::fabs(v)) * (u >= 0 ? 1 : -1), vv = (1 - std::fabs(u)) * (v >= 0 ? 1 : -1);
+    u = uu;
+    v = vv;
+  }
+  const int i = std::clamp(static_cast<int>((u + 1) / 2 * kCells), 0, kCells - 1);
+  const int j = std::clamp(static_cast<int>((v + 1) / 2 * kCells), 0, kCells - 1);
+  return {i, j};
+}
+Vec3 octa_dir(double u, double v) {  // u, v in [-1, 1]
+  Vec3 d{u, v, 1 - std::fabs(u) - std::fabs(v)};
+  if (d[2] < 0) {
+    d[0] = (1 - std::fabs(v)) * (u >= 0 ? 1 : -1);
+    d[1] = (1 - std::fabs(u)) * (v >= 0 ? 1 : -1);
+  }
+  return normalize(d);
+}
+
+}  // namespace
+
+// Faces of a shape listed by normal direction: for each angular level
+// delta and each cell of the octahedral map, the faces whose normal (either
+// sign) lies within delta + the cell's angular radius of the cell centre.
+struct NormalIndex {
+  static constexpr double kLevels[] = {0.02, 0.05, 0.1, 0.2, 0.4};  // radians
+  std::vector<std::vector<std::uint32_t>> lists;  // [level][cell]
+  std::vector<std::uint32_t> all;
+  const std::vector<std::uint32_t>& query(const Vec3& dir, double delta) const {
+    int level = 0;
+    while (level < 5 && kLevels[level] < delta) ++level;
+    if (level == 5 || lists.empty()) return all;
+    const auto [i, j] = octa_cell(dir);
+    return lists[(level * kCells + i) * kCells + j];
+  }
+};
 
 struct TraceScene::Shape {
   std::string name;
@@ -63,7 +117,10 @@ struct TraceScene::Shape {
   std::vector<Vec3> edge_normal;
   std::vector<double> edge_offset;
   std::vector<Sphere> face_sphere;
+  Sphere bounds;  // of all vertices (shape frame)
+  NormalIndex normals;
   Vec3 antenna{0, 0, 0};
+  std::vector<std::uint32_t> seen_from_mount;  // vehicle models: faces the antenna mount sees
   RTCScene scene = nullptr;
 };
 
@@ -79,6 +136,7 @@ struct TraceScene::Impl {
   std::vector<bool> slot_enabled;
   std::vector<double> cos_yaw, sin_yaw;
   std::vector<Edge> edges;
+  std::vector<std::vector<std::uint32_t>> reaching;  // [2 f + (side < 0)]
 
   const Shape& shape_of(const FaceRef& f, const std::vector<VehiclePose>& vehicles) const {
     return f.instance == 0 ? world : *models[vehicles[f.instance - 1].model];
@@ -87,6 +145,32 @@ struct TraceScene::Impl {
   // whose origin is `o_local` away from the Embree origin.
   static double step(double o_local, double t) { return std::max(1e-4, 4e-7 * (o_local + t)); }
 };
+
+static void build_normal_index(TraceScene::Shape& s) {
+  NormalIndex& ix = s.normals;
+  const auto nf = static_cast<std::uint32_t>(s.face_plane.size());
+  ix.all.resize(nf);
+  for (std::uint32_t f = 0; f < nf; ++f) ix.all[f] = f;
+  ix.lists.assign(5 * kCells * kCells, {});
+  for (int i = 0; i < kCells; ++i)
+    for (int j = 0; j < kCells; ++j) {
+      const double u0 = -1 + 2.0 * i / kCells, v0 = -1 + 2.0 * j / kCells, h = 2.0 / kCells;
+      const Vec3 c = octa_dir(u0 + h / 2, v0 + h / 2);
+      // Angular radius of the cell: the farthest of a 9 x 9 grid over it
+      // (with margin: the map is smooth within a cell).
+      double radius = 0;
+      for (int a = 0; a <= 8; ++a)
+        for (int b = 0; b <= 8; ++b)
+          radius = std::max(radius, std::acos(std::clamp(dot(c, octa_dir(u0 + h * a / 8, v0 + h * b / 8)), -1.0, 1.0)));
+      radius = radius * 1.25 + 1e-3;
+      for (int level = 0; level < 5; ++level) {
+        const double cos_max = std::cos(std::min(kPi / 2, NormalIndex::kLevels[level] + radius));
+        auto& list = ix.lists[(level * kCells + i) * kCells + j];
+        for (std::uint32_t f = 0; f < nf; ++f)
+          if (std::fabs(dot(s.face_plane[f].normal, c)) >= cos_max) list.push_back(f);
+      }
+    }
+}
 
 // Builds per-face planes and an Embree scene from a meshkit scene.
 static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDevice device, const Vec3& origin,
@@ -191,6 +275,17 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
       s.face_sphere[f].radius = 0.5 * norm(hi[f] - lo[f]);
     }
   }
+
+  {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (const auto& v : s.vertices)
+      for (int k = 0; k < 3; ++k) {
+        lo[k] = std::min(lo[k], v[k]);
+        hi[k] = std::max(hi[k], v[k]);
+      }
+    if (!s.vertices.empty()) s.bounds = TraceScene::Sphere{0.5 * (lo + hi), 0.5 * norm(hi - lo)};
+  }
+  build_normal_index(s);
 
   s.scene = rtcNewScene(device);
   rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_ROBUST);
@@ -337,6 +432,32 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
               [this](const std::string& m) { return material_index(m); }, 0);
   for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
   d.edges = extract_edges(d.world, d.static_objects);
+  {
+    const std::size_t nf = d.world.face_plane.size();
+    std::vector<std::vector<std::uint32_t>> verts(nf);
+    for (std::size_t t = 0; t < d.world.triangles.size(); ++t)
+      for (auto vi : d.world.triangles[t]) verts[d.world.tri_face[t]].push_back(vi);
+    for (auto& v : verts) {
+      std::sort(v.begin(), v.end());
+      v.erase(std::unique(v.begin(), v.end()), v.end());
+    }
+    d.reaching.assign(2 * nf, {});
+    for (std::uint32_t f = 0; f < nf; ++f) {
+      const Plane& p = d.world.face_plane[f];
+      const double eps = 1e-9 + d.world.face_flatness[f];
+      for (std::uint32_t g = 0; g < nf; ++g) {
+        if (g == f) continue;
+        bool front = false, back = false;
+        for (auto vi : verts[g]) {
+          const double h = dot(p.normal, d.world.vertices[vi]) - p.offset;
+          front = front || h > eps;
+          back = back || h < -eps;
+        }
+        if (front) d.reaching[2 * f].push_back(g);
+        if (back) d.reaching[2 * f + 1].push_back(g);
+      }
+    }
+  }
 
   d.top = rtcNewScene(d.device);
   rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST));
@@ -375,6 +496,25 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
   s->name = "vehicle model " + name;
   s->antenna = antenna;
   build_shape(*s, model, d.device, Vec3{0, 0, 0}, [this](const std::string& m) { return material_index(m); }, 0);
+  {
+    // Faces the antenna sees on its own vehicle (through its windows too:
+    // rays continue through every face until they leave the model).
+    std::vector<char> seen(s->face_plane.size(), 0);
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    for (const Vec3& dir : fibonacci_directions(1 << 16)) {
+      float tnear = 0;
+      for (int hop = 0; hop < 64; ++hop) {
+        RTCRayHit rh = make_ray(antenna, dir, tnear, 1e3);
+        rtcIntersect1(s->scene, &ctx, &rh);
+        if (rh.hit.geomID == kNone) break;
+        seen[s->tri_face[rh.hit.primID]] = 1;
+        tnear = rh.ray.tfar + 1e-4f;
+      }
+    }
+    for (std::uint32_t f = 0; f < seen.size(); ++f)
+      if (seen[f]) s->seen_from_mount.push_back(f);
+  }
   d.models.push_back(std::move(s));
   return static_cast<std::uint32_t>(d.models.size() - 1);
 }
@@ -532,6 +672,31 @@ TraceScene::Sphere TraceScene::face_sphere(const FaceRef& f) const {
   const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
   const Vec3& m = b.centre;
   return Sphere{Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + vehicles_[v].position, b.radius};
+}
+
+const std::vector<std::uint32_t>& TraceScene::static_faces_reaching(std::uint32_t f, int side) const {
+  return impl_->reaching.at(2 * std::size_t{f} + (side > 0 ? 0 : 1));
+}
+
+TraceScene::Sphere TraceScene::vehicle_sphere(std::size_t v) const {
+  const auto& d = *impl_;
+  const Sphere& b = d.models[vehicles_[v].model]->bounds;
+  const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
+  const Vec3& m = b.centre;
+  return Sphere{Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + vehicles_[v].position, b.radius};
+}
+
+const std::vector<std::uint32_t>& TraceScene::vehicle_faces_near_normal(std::size_t v, const Vec3& dir,
+                                                                        double delta) const {
+  const auto& d = *impl_;
+  const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
+  const Vec3 m{c * dir[0] + sn * dir[1], -sn * dir[0] + c * dir[1], dir[2]};  // into the model frame
+  return d.models[vehicles_[v].model]->normals.query(m, delta);
+}
+
+const std::vector<std::uint32_t>* TraceScene::faces_seen_from_mount(std::size_t v, const Vec3& node) const {
+  if (norm(node - vehicle_antenna(v)) > 1e-6) return nullptr;
+  return &impl_->models[vehicles_[v].model]->seen_from_mount;
 }
 
 std::vector<std::string> TraceScene::object_names() const {

@@ -121,6 +121,20 @@ class TraceScene {
     double radius = 0;
   };
   Sphere face_sphere(const FaceRef& f) const;  // world frame
+  // Static faces with a vertex strictly on the `side` (> 0: front, < 0:
+  // back) of static face f's plane, computed once with the scene: the only
+  // faces a path reflected by f can go on to.
+  const std::vector<std::uint32_t>& static_faces_reaching(std::uint32_t f, int side) const;
+  // Bounding sphere of vehicle v's model, in the world.
+  Sphere vehicle_sphere(std::size_t v) const;
+  // Faces of vehicle v whose normal (either sign) may lie within `delta`
+  // radians of the unit world direction `dir`: a superset from a table of
+  // normal directions built once per model (callers test each face).
+  const std::vector<std::uint32_t>& vehicle_faces_near_normal(std::size_t v, const Vec3& dir, double delta) const;
+  // Faces of vehicle v that its own antenna mount sees (2^16 rays from the
+  // mount against the model alone, once per model), or nullptr when `node`
+  // is not at the mount (then any face may be seen).
+  const std::vector<std::uint32_t>* faces_seen_from_mount(std::size_t v, const Vec3& node) const;
 
   // Tables the path records index: materials by name ("concrete", "glass"...),
   // objects: static objects first ("way/123", "ground"), then one per vehicle
