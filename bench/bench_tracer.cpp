@@ -24,7 +24,9 @@
 //   BM_Snapshot/<scene>/N        trace_snapshot for N vehicles (N = 5 ... 120)
 //                                with the default TracerConfig (depth 3, LoS +
 //                                specular + refraction, 4096 rays per source)
-//                                and default RadioConfig (5.9 GHz). Poses come
+//                                and default RadioConfig (5.9 GHz); a third
+//                                argument bit 4 swaps the exact image search
+//                                for shoot-and-bounce alone. Poses come
 //                                from place_on_lanes(net, N, seed 1,
 //                                passenger:truck:bus = 8:1:1); when that mix does
 //                                not fit, passenger cars only (counter
@@ -252,10 +254,12 @@ void BM_EmbreeRaw(benchmark::State& state, const std::string& name) {
 
 // Mechanism sets of the snapshot benchmark: each adds its cost on top of
 // the specular/refraction core (the tracer's defaults otherwise).
-enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3 };
-const char* mechanisms_name(int m) {
+// kSbr: the same with shoot-and-bounce alone as the candidate search (what
+// the exact image search costs and buys).
+enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3, kSbr = 4 };
+std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
-  return names[m];
+  return std::string(names[m & 3]) + (m & kSbr ? ", sbr search" : ", image search");
 }
 
 void BM_Snapshot(benchmark::State& state, const std::string& name) {
@@ -268,6 +272,7 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   tracer::TracerConfig cfg;
   cfg.diffraction = mech & kDiffraction;
   cfg.diffuse = mech & kDiffuse;
+  if (mech & kSbr) cfg.candidates = tracer::CandidateSearch::sbr;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   for (auto _ : state) {
@@ -310,7 +315,7 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["passenger_only"] = used->passenger_only ? 1 : 0;
   state.counters["trucks"] = static_cast<double>(trucks);
   state.counters["buses"] = static_cast<double>(buses);
-  state.SetLabel(std::string(mechanisms_name(mech)) +
+  state.SetLabel(mechanisms_name(mech) +
                  (used->passenger_only ? ", mix passenger" : ", mix passenger:truck:bus 8:1:1"));
 }
 
@@ -331,7 +336,7 @@ void register_all() {
     for (int n : {5, 10, 20, 40, 60, 120}) snap->Args({n, kSpecular});
     // The cost of each mechanism (issue 5), at two traffic densities.
     for (int n : {20, 60})
-      for (int m : {kDiffraction, kDiffuse, kAll}) snap->Args({n, m});
+      for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll}) snap->Args({n, m});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
   }
 }

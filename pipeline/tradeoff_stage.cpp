@@ -307,6 +307,13 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.diffuse = s.tracer.diffraction = false;
       grid.push_back(s);
     }
+    // What the exact image search costs and buys over sampling alone.
+    if (base.candidates != tracer::CandidateSearch::exhaustive) {
+      const bool image = base.candidates == tracer::CandidateSearch::image;
+      s = variant(image ? "sbr search" : "image search");
+      s.tracer.candidates = image ? tracer::CandidateSearch::sbr : tracer::CandidateSearch::image;
+      grid.push_back(s);
+    }
   }
   for (const auto& s : grid) tracer::validate(s.tracer, settings.radio);
 
@@ -551,6 +558,9 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                     {"diffuse", s.tracer.diffuse},
                     {"diffraction", s.tracer.diffraction},
                     {"refraction", s.tracer.refraction},
+                    {"candidates", s.tracer.candidates == tracer::CandidateSearch::image ? "image"
+                                   : s.tracer.candidates == tracer::CandidateSearch::sbr ? "sbr"
+                                                                                          : "exhaustive"},
                     {"path_threshold_db", s.tracer.path_threshold_db},
                     {"lod", s.lod},
                     {"static_simplification", s.simplify_m},

@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cmath>
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -101,6 +102,32 @@ Street random_street(unsigned seed, int boxes, int antennas) {
   return s;
 }
 
+// Ground, one building row and `count` instanced vehicles (built-in models,
+// ~110 planar faces each; every fourth a truck) at random positions,
+// headings and speeds along a 16 m wide street, with their roof antennas.
+struct VehicleStreet {
+  std::unique_ptr<tracer::TraceScene> scene;
+  std::vector<tracer::Node> nodes;
+};
+VehicleStreet vehicle_street(unsigned seed, int count, double half_length) {
+  std::mt19937 rng(seed);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  meshkit::Scene sc;
+  add_ground(sc, 300);
+  add_box_object(sc, {-150, 12, 0}, {150, 24, 15}, "concrete", "north");
+  VehicleStreet st;
+  st.scene = std::make_unique<tracer::TraceScene>(sc);
+  const auto car = add_library_model(*st.scene, "passenger");
+  const auto truck = add_library_model(*st.scene, "truck");
+  std::vector<tracer::VehiclePose> poses;
+  for (int v = 0; v < count; ++v)
+    poses.push_back({"v" + std::to_string(v), v % 4 == 2 ? truck : car, {u(-half_length, half_length), u(-8, 8), 0},
+                     u(0, 1) < 0.5 ? 0.0 : tracer::kPi + u(-0.2, 0.2), {u(-15, 15), 0, 0}});
+  st.scene->set_vehicles(poses);
+  st.nodes = tracer::vehicle_nodes(*st.scene);
+  return st;
+}
+
 }  // namespace
 
 // Property: on random streets the default search finds exactly the
@@ -150,20 +177,9 @@ TEST(ImageSearch, FortyBoxStreetHasEveryPathOfOrder2) {
 // With instanced vehicles (the built-in models, ~110 planar faces each) the
 // order-1 paths are exact: small, distant body panels and windows included.
 TEST(ImageSearch, VehicleReflectionsMatchExhaustiveAtOrder1) {
-  std::mt19937 rng(3);
-  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-  meshkit::Scene sc;
-  add_ground(sc, 300);
-  add_box_object(sc, {-150, 12, 0}, {150, 24, 15}, "concrete", "north");
-  tracer::TraceScene scene(sc);
-  const auto car = add_library_model(scene, "passenger");
-  const auto truck = add_library_model(scene, "truck");
-  std::vector<tracer::VehiclePose> poses;
-  for (int v = 0; v < 12; ++v)
-    poses.push_back({"v" + std::to_string(v), v % 4 == 0 ? truck : car, {u(-80, 80), u(-8, 8), 0},
-                     u(0, 1) < 0.5 ? 0.0 : tracer::kPi + u(-0.2, 0.2), {u(-15, 15), 0, 0}});
-  scene.set_vehicles(poses);
-  const auto nodes = tracer::vehicle_nodes(scene);
+  const VehicleStreet st = vehicle_street(3, 12, 80);
+  const auto& scene = *st.scene;
+  const auto& nodes = st.nodes;
   const auto def = tracer::trace_snapshot(scene, nodes, specular_config(1, tracer::CandidateSearch::image), {});
   const auto ref = tracer::trace_snapshot(scene, nodes, specular_config(1, tracer::CandidateSearch::exhaustive), {});
   EXPECT_GT(expect_contains(def, ref, 1, "vehicles"), 100u);
@@ -178,20 +194,9 @@ TEST(ImageSearch, VehicleReflectionsMatchExhaustiveAtOrder1) {
 TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
   std::size_t compared = 0, sampled = 0;
   for (unsigned seed = 1; seed <= 4; ++seed) {
-    std::mt19937 rng(seed);
-    auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    meshkit::Scene sc;
-    add_ground(sc, 300);
-    add_box_object(sc, {-150, 12, 0}, {150, 24, 15}, "concrete", "north");
-    tracer::TraceScene scene(sc);
-    const auto car = add_library_model(scene, "passenger");
-    const auto truck = add_library_model(scene, "truck");
-    std::vector<tracer::VehiclePose> poses;
-    for (int v = 0; v < 5; ++v)
-      poses.push_back({"v" + std::to_string(v), v == 2 ? truck : car, {u(-60, 60), u(-8, 8), 0},
-                       u(0, 1) < 0.5 ? 0.0 : tracer::kPi, {0, 0, 0}});
-    scene.set_vehicles(poses);
-    const auto nodes = tracer::vehicle_nodes(scene);
+    const VehicleStreet st = vehicle_street(seed, 5, 60);
+    const auto& scene = *st.scene;
+    const auto& nodes = st.nodes;
     const auto def = tracer::trace_snapshot(scene, nodes, specular_config(2, tracer::CandidateSearch::image), {});
     const auto ref = tracer::trace_snapshot(scene, nodes, specular_config(2, tracer::CandidateSearch::exhaustive), {});
     // The complete classes, told from the reference paths' reflecting

@@ -186,35 +186,41 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
 
   // The reflection on face f (world plane) from point `from` to receiver r,
   // appended when its point lies on the face.
-  auto reflect_to = [&](std::size_t f, const Vec3& from, std::size_t r, const Vec3& xr, Vec3& point) {
+  auto reflect_to = [&](std::size_t f, const Vec3& from, const Vec3& xr, Vec3& point) {
     const Plane& pl = faces.planes[f];
     const double df = dot(pl.normal, from) - pl.offset;
     const double d = dot(pl.normal, xr) - pl.offset;
     if (!(df * d > 0)) return false;
     ++local.tests;
-    (void)r;
     point = crossing(from - (2 * df) * pl.normal, -df, xr, d);
     return on_face(f, point);
   };
 
-  // Order 1, vehicle faces, through their normals (towards higher receivers).
-  for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
-    const auto& sv = faces.vehicle_spheres[v];
-    const std::uint32_t base = faces.vehicle_begin[v];
-    for (std::size_t r = higher_from; r < rx.size(); ++r) {
-      const Vec3 xr = receiver(r);
-      Vec3 m;
-      double cos_delta = 0;
-      const auto& list = faces_towards(scene, sv, v, xs, xr, m, cos_delta);
-      ++local.image_sources;
-      for (auto lf : list) {
-        const std::size_t f = base + lf;
-        if (std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
-        Vec3 p;
-        if (reflect_to(f, xs, r, xr, p)) out.push_back({receivers[r], {faces.refs[f]}});
-      }
+  // Reflections on vehicle v's faces from `from` to receiver r: emit(face,
+  // point) for each face whose reflection point lies on it. Faces come from
+  // the normal index, or (`mount`) on the receiver's own vehicle from the
+  // faces its antenna mount sees, where the normal bound is void.
+  auto vehicle_reflections = [&](std::size_t v, const Vec3& from, std::size_t r, bool mount, auto&& emit) {
+    const Vec3 xr = receiver(r);
+    Vec3 m;
+    double cos_delta = -1;
+    const std::vector<std::uint32_t>* list =
+        mount && static_cast<int>(v) == nodes[receivers[r]].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
+    if (!list) list = &faces_towards(scene, faces.vehicle_spheres[v], v, from, xr, m, cos_delta);
+    ++local.image_sources;
+    for (auto lf : *list) {
+      const std::size_t f = faces.vehicle_begin[v] + lf;
+      if (cos_delta > -1 && std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
+      Vec3 p;
+      if (reflect_to(f, from, xr, p)) emit(f, p);
     }
-  }
+  };
+
+  // Order 1, vehicle faces, through their normals (towards higher receivers).
+  for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
+    for (std::size_t r = higher_from; r < rx.size(); ++r)
+      vehicle_reflections(v, xs, r, false,
+                          [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
 
   // Order 2, ground then vehicle (towards every receiver: from the other
   // end it is vehicle then ground).
@@ -227,23 +233,12 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       const auto& sv = faces.vehicle_spheres[v];
       const double h = dot(pg.normal, sv.centre) - pg.offset;
       if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
-      const std::uint32_t base = faces.vehicle_begin[v];
-      for (std::size_t r = 0; r < rx.size(); ++r) {
-        const Vec3 xr = receiver(r);
-        Vec3 m;
-        double cos_delta = 0;
-        const auto& list = faces_towards(scene, sv, v, i1, xr, m, cos_delta);
-        ++local.image_sources;
-        for (auto lf : list) {
-          const std::size_t f = base + lf;
-          if (std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
-          Vec3 q2;
-          if (!reflect_to(f, i1, r, xr, q2)) continue;
+      for (std::size_t r = 0; r < rx.size(); ++r)
+        vehicle_reflections(v, i1, r, false, [&](std::size_t f, const Vec3& q2) {
           const double d2 = dot(pg.normal, q2) - pg.offset;
-          if (!(ds * d2 > 0)) continue;
-          if (on_face(g, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
-        }
-      }
+          if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
+            out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+        });
     }
   }
 
@@ -259,28 +254,12 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     return ds > 0 ? h + sv.radius > 0 : h - sv.radius < 0;
   };
   auto static_then_vehicle = [&](std::uint32_t f1, const Vec3& i1, double ds, std::size_t v, std::size_t r) {
-    const auto& sv = faces.vehicle_spheres[v];
     const Plane& p1 = faces.planes[f1];
-    const Vec3 xr = receiver(r);
-    Vec3 m;
-    double cos_delta = -1;
-    // The receiver's own vehicle: the faces its antenna sees (the normal
-    // cull is void there, the antenna being inside the vehicle's sphere).
-    const std::vector<std::uint32_t>* list = static_cast<int>(v) == nodes[receivers[r]].vehicle
-                                                 ? scene.faces_seen_from_mount(v, xr)
-                                                 : nullptr;
-    if (!list) list = &faces_towards(scene, sv, v, i1, xr, m, cos_delta);
-    ++local.image_sources;
-    const std::uint32_t base = faces.vehicle_begin[v];
-    for (auto lf : *list) {
-      const std::size_t f = base + lf;
-      if (cos_delta > -1 && std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
-      Vec3 q2;
-      if (!reflect_to(f, i1, r, xr, q2)) continue;
+    vehicle_reflections(v, i1, r, true, [&](std::size_t f, const Vec3& q2) {
       const double d2 = dot(p1.normal, q2) - p1.offset;
-      if (!(ds * d2 > 0)) continue;
-      if (on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[f1], faces.refs[f]}});
-    }
+      if (ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2)))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f]}});
+    });
   };
   const int own = nodes[src].vehicle;
   bool any_end_vehicle = own >= 0;

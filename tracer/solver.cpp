@@ -116,18 +116,6 @@ std::vector<Node> vehicle_nodes(const TraceScene& scene) {
   return nodes;
 }
 
-std::vector<Vec3> fibonacci_sphere(int n) {
-  std::vector<Vec3> dirs(static_cast<std::size_t>(n));
-  const double golden = kPi * (3.0 - std::sqrt(5.0));
-  for (int i = 0; i < n; ++i) {
-    const double z = 1.0 - (2.0 * i + 1.0) / n;
-    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-    const double phi = golden * i;
-    dirs[i] = Vec3{r * std::cos(phi), r * std::sin(phi), z};
-  }
-  return dirs;
-}
-
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,
                       std::uint64_t* rays) {
   blockers.clear();

@@ -119,7 +119,5 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,
                       std::uint64_t* rays = nullptr);
 
-// n directions of a spherical Fibonacci lattice (deterministic, near-uniform).
-std::vector<Vec3> fibonacci_sphere(int n);
 
 }  // namespace raysweep::tracer

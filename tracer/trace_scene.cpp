@@ -46,17 +46,6 @@ RTCRayHit make_ray(const Vec3& o, const Vec3& dir, double tnear, double tfar) {
   return rh;
 }
 
-std::vector<Vec3> fibonacci_directions(int n) {
-  std::vector<Vec3> dirs(static_cast<std::size_t>(n));
-  const double golden = kPi * (3.0 - std::sqrt(5.0));
-  for (int i = 0; i < n; ++i) {
-    const double z = 1.0 - (2.0 * i + 1.0) / n;
-    const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
-    dirs[i] = Vec3{r * std::cos(golden * i), r * std::sin(golden * i), z};
-  }
-  return dirs;
-}
-
 }  // namespace
 
 namespace {
@@ -502,7 +491,7 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
     std::vector<char> seen(s->face_plane.size(), 0);
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    for (const Vec3& dir : fibonacci_directions(1 << 16)) {
+    for (const Vec3& dir : fibonacci_sphere(1 << 16)) {
       float tnear = 0;
       for (int hop = 0; hop < 64; ++hop) {
         RTCRayHit rh = make_ray(antenna, dir, tnear, 1e3);

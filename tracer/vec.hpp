@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cmath>
+#include <vector>
 
 #include "meshkit/scene.hpp"
 
@@ -32,5 +33,17 @@ inline Vec3 any_perpendicular(const Vec3& a) {
 // Spherical angles of a unit direction: theta from +z, phi from +x towards +y.
 inline double zenith(const Vec3& d) { return std::acos(std::fmax(-1.0, std::fmin(1.0, d[2]))); }
 inline double azimuth(const Vec3& d) { return std::atan2(d[1], d[0]); }
+
+// n directions of a spherical Fibonacci lattice (deterministic, near-uniform).
+inline std::vector<Vec3> fibonacci_sphere(int n) {
+  std::vector<Vec3> dirs(static_cast<std::size_t>(n > 0 ? n : 0));
+  const double golden = 3.14159265358979323846 * (3.0 - std::sqrt(5.0));
+  for (int i = 0; i < n; ++i) {
+    const double z = 1.0 - (2.0 * i + 1.0) / n;
+    const double r = std::sqrt(std::fmax(0.0, 1.0 - z * z));
+    dirs[i] = Vec3{r * std::cos(golden * i), r * std::sin(golden * i), z};
+  }
+  return dirs;
+}
 
 }  // namespace raysweep::tracer
