@@ -53,6 +53,8 @@ struct LinkRecord {
   float rms_delay_spread_s = 0;
   std::uint32_t path_count = 0;  // this link's paths follow the previous links' paths in FrameRecord::paths
   std::uint32_t paths_below_threshold = 0;  // found but dropped: tracer.path_threshold_db below the strongest
+  std::uint8_t los_class_fresnel = 0;  // the label by the first Fresnel zone (tracer/fresnel.hpp)
+  float fresnel_clearance = 1;         // worst obstacle's h / r1 (negative: crossed), capped at 1
 };
 
 struct PathRecord {

@@ -913,6 +913,13 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["links"] = links;
   info["los_counts"] = {{"LOS", los[0]}, {"NLOSV", los[1]}, {"NLOS", los[2]}};
   if (other_class) info["los_counts"]["invalid"] = other_class;
+  if (r.exists("/links/los_class_fresnel")) {
+    std::uint64_t zone[3] = {0, 0, 0};
+    r.scan_u64("/links/los_class_fresnel", [&](const std::vector<std::uint64_t>& v) {
+      for (auto c : v) zone[std::min<std::uint64_t>(c, 2)] += 1;
+    });
+    info["los_counts_fresnel"] = {{"LOS", zone[0]}, {"NLOSV", zone[1]}, {"NLOS", zone[2]}};
+  }
   info["cached_links"] = cached;
   info["out_of_range_links"] = out_of_range;
   info["paths"] = paths;
@@ -972,6 +979,16 @@ std::string format_channel_info(const nlohmann::json& info) {
     }
   }
   o << "\n";
+  if (info.contains("los_counts_fresnel")) {
+    o << "Fresnel zone ";
+    for (const char* c : {"LOS", "NLOSV", "NLOS"}) {
+      const auto n = info["los_counts_fresnel"].value(c, std::uint64_t{0});
+      std::snprintf(buf, sizeof buf, " %s %llu (%.1f %%)", c, static_cast<unsigned long long>(n),
+                    links ? 100.0 * static_cast<double>(n) / static_cast<double>(links) : 0.0);
+      o << buf;
+    }
+    o << "  (0.6 F1)\n";
+  }
   std::snprintf(buf, sizeof buf, "paths         %llu (%.2f per link, %.2f per in-range link)\n",
                 static_cast<unsigned long long>(num("paths")), real("mean_paths_per_link"),
                 real("mean_paths_per_in_range_link"));

@@ -32,7 +32,7 @@ struct DatasetWriter::Impl {
   Column *f_time, *f_node_offset, *f_node_count, *f_link_offset, *f_link_count;
   Column *s_node, *s_position, *s_velocity, *s_heading;
   Column *l_frame, *l_tx, *l_rx, *l_los, *l_flags, *l_blockers, *l_gain_c, *l_gain_i, *l_first_delay, *l_rms,
-      *l_path_count, *l_path_offset, *l_below;
+      *l_path_count, *l_los_fresnel, *l_clearance, *l_path_offset, *l_below;
   Column *p_a, *p_tau, *p_aod, *p_aoa, *p_doppler, *p_icount, *p_ioffset;
   Column *i_type, *i_object, *i_point;
   Column* c_h = nullptr;
@@ -82,6 +82,8 @@ struct DatasetWriter::Impl {
     l_rms = column("links", "rms_delay_spread_s", Dtype::f32);
     l_path_count = column("links", "path_count", Dtype::u32);
     l_below = column("links", "paths_below_threshold", Dtype::u32);
+    l_los_fresnel = column("links", "los_class_fresnel", Dtype::u8);
+    l_clearance = column("links", "fresnel_clearance", Dtype::f32);
     l_path_offset = column("links", "path_offset", Dtype::u64);
 
     p_a = column("paths", "a", Dtype::c64);
@@ -129,6 +131,9 @@ struct DatasetWriter::Impl {
         bad(at + ": links not strictly sorted by (tx, rx)");
       if (!present(l.tx) || !present(l.rx)) bad(at + ": node not present in the frame's node states");
       if (l.los_class > 2) bad(at + ": los_class " + std::to_string(l.los_class) + " not in 0..2");
+      if (l.los_class_fresnel > 2)
+        bad(at + ": los_class_fresnel " + std::to_string(l.los_class_fresnel) + " not in 0..2");
+      if (!(l.fresnel_clearance <= 1)) bad(at + ": fresnel_clearance above 1 or not a number");
       if (l.flags & ~(kLinkCached | kLinkOutOfRange)) bad(at + ": unknown flag bits");
       if ((l.flags & kLinkOutOfRange) && l.path_count > 0) bad(at + ": out-of-range link with paths");
       paths += l.path_count;
@@ -172,7 +177,7 @@ struct DatasetWriter::Impl {
     }
 
     for (Column* c : {l_frame, l_tx, l_rx, l_los, l_flags, l_blockers, l_gain_c, l_gain_i, l_first_delay, l_rms,
-                      l_path_count, l_path_offset, l_below})
+                      l_path_count, l_path_offset, l_below, l_los_fresnel, l_clearance})
       c->reserve_rows(fr.links.size());
     std::uint64_t path_offset = path_count;
     for (const auto& l : fr.links) {
@@ -188,6 +193,8 @@ struct DatasetWriter::Impl {
       l_rms->put(l.rms_delay_spread_s);
       l_path_count->put(l.path_count);
       l_below->put(l.paths_below_threshold);
+      l_los_fresnel->put(l.los_class_fresnel);
+      l_clearance->put(l.fresnel_clearance);
       l_path_offset->put(path_offset);
       path_offset += l.path_count;
     }

@@ -25,7 +25,7 @@
 
 namespace raysweep::generators {
 
-inline constexpr const char* kDatasetSchemaVersion = "1.1.0";
+inline constexpr const char* kDatasetSchemaVersion = "1.2.0";
 inline constexpr const char* kDatasetFormat = "raysweep-channels";
 
 struct DatasetHeader {

@@ -20,7 +20,7 @@ namespace {
 
 constexpr std::size_t kMagicBytes = 8;
 constexpr std::uint64_t kNodeBytes = 4 + 3 * 8 + 4 * 4;                      // 44
-constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4;  // 40
+constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 4;  // 45
 constexpr std::uint64_t kPathBytes = 4 + 4 + 8 + 4 * 4 + 4 + 1;              // 37
 constexpr std::uint64_t kInteractionBytes = 1 + 4 + 3 * 4;                   // 17
 constexpr std::uint64_t kCfrBytes = 8;
@@ -117,6 +117,8 @@ void write_frame_block(const std::filesystem::path& path, const std::vector<Fram
       o.f32(l.rms_delay_spread_s);
       o.u32(l.path_count);
       o.u32(l.paths_below_threshold);
+      o.u8(l.los_class_fresnel);
+      o.f32(l.fresnel_clearance);
     }
     for (const auto& p : f.paths) {
       o.f32(p.a.real()), o.f32(p.a.imag());
@@ -206,6 +208,8 @@ std::vector<FrameRecord> read_frame_block(const std::filesystem::path& path) {
       l.rms_delay_spread_s = r.f32();
       l.path_count = r.u32();
       l.paths_below_threshold = r.u32();
+      l.los_class_fresnel = r.u8();
+      l.fresnel_clearance = r.f32();
     }
     f.paths.resize(r.count(n_paths, kPathBytes, "paths"));
     for (auto& q : f.paths) {

@@ -230,6 +230,8 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
     L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
     L.path_count = static_cast<std::uint32_t>(res.paths.size());
     L.paths_below_threshold = res.dropped_threshold;
+    L.los_class_fresnel = static_cast<std::uint8_t>(res.fresnel_class);
+    L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
     if (res.out_of_range) L.flags |= kLinkOutOfRange;
     for (const auto& path : res.paths) {
       if (std::norm(path.a) > strongest) {
@@ -260,7 +262,9 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
         c.interactions.push_back(ir);
       }
     }
-    c.reach = std::max(strongest_len, norm(c.a - c.b)) + options_.cache_margin_m;
+    // The first Fresnel zone (the LoS label) lies within d + lambda / 2.
+    c.reach = std::max(strongest_len, norm(c.a - c.b) + 0.5 * tracer::kSpeedOfLight / radio_.frequency_hz) +
+              options_.cache_margin_m;
     c.lo = c.hi = c.a;
     for (const auto& p : c.points)
       for (int k = 0; k < 3; ++k) {

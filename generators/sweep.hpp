@@ -104,7 +104,7 @@ class Sweep {
     std::vector<InteractionRecord> interactions;
     std::vector<std::complex<float>> cfr;
     tracer::Vec3 a, b;  // antenna positions it was traced with
-    double reach = 0;   // strongest stored path's length (or the direct distance) + margin
+    double reach = 0;   // strongest stored path's length (or the direct distance + lambda / 2) + margin
     std::vector<tracer::Vec3> points;         // each path's polyline a, interactions..., b
     std::vector<std::uint32_t> path_points;   // polyline sizes
     tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point

@@ -57,6 +57,8 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
     pairs.push_back({{"tx", nodes[p.tx].id},
                      {"rx", nodes[p.rx].id},
                      {"los_class", tracer::los_class_name(p.los_class)},
+                     {"los_class_fresnel", tracer::los_class_name(p.fresnel_class)},
+                     {"fresnel_clearance", p.fresnel_clearance},
                      {"blockers", blockers},
                      {"path_gain_db", db_or_null(p.stats.gain_coherent)},
                      {"path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent)},

@@ -29,7 +29,8 @@ FLAG_OUT_OF_RANGE = 2
 
 LINK_COLUMNS = ("frame", "tx", "rx", "los_class", "flags", "blocker_count", "gain_coherent_db",
                 "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset",
-                "paths_below_threshold")  # the last one since schema 1.1.0
+                "paths_below_threshold",  # since schema 1.1.0
+                "los_class_fresnel", "fresnel_clearance")  # since schema 1.2.0
 
 
 def _text(value):
@@ -180,7 +181,7 @@ class ChannelDataset:
 
     @property
     def link_columns(self):
-        """The /links columns this file has (files older than schema 1.1.0 lack paths_below_threshold)."""
+        """The /links columns this file has (older files lack the columns added since: see LINK_COLUMNS)."""
         return tuple(c for c in LINK_COLUMNS if "links/" + c in self._file)
 
     # -- frames ----------------------------------------------------------------------------

@@ -79,6 +79,8 @@ struct Builder {
     l.path_count = static_cast<std::uint32_t>(path_objects.size());
     const std::uint32_t li = link_counter++;
     l.paths_below_threshold = (flags & kLinkOutOfRange) ? 0 : 7 * li + 1;
+    l.los_class_fresnel = static_cast<std::uint8_t>(std::max<int>(los, li % 3));
+    l.fresnel_clearance = 1.0f - 0.37f * static_cast<float>(li);
     if (path_objects.empty()) {
       l.gain_coherent_db = kNoGain;
       l.gain_incoherent_db = kNoGain;
@@ -249,7 +251,7 @@ TEST(Dataset, RoundTripEveryField) {
 
   // Root attributes.
   EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
-  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.1.0");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.2.0");
   EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
   EXPECT_EQ(str_attr(file, "/", "git_hash"), "0123456789ab");
   EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "config")), test_header().config);
@@ -320,6 +322,8 @@ TEST(Dataset, RoundTripEveryField) {
   const auto pc = read_ds<std::uint32_t>(file, "/links/path_count", H5T_NATIVE_UINT32);
   const auto po = read_ds<std::uint64_t>(file, "/links/path_offset", H5T_NATIVE_UINT64);
   const auto below = read_ds<std::uint32_t>(file, "/links/paths_below_threshold", H5T_NATIVE_UINT32);
+  const auto zone = read_ds<std::uint8_t>(file, "/links/los_class_fresnel", H5T_NATIVE_UINT8);
+  const auto clearance = read_ds<float>(file, "/links/fresnel_clearance", H5T_NATIVE_FLOAT);
   ASSERT_EQ(tx.size(), 6u);
   EXPECT_EQ(frame, x.link_frame);
   EXPECT_EQ(frame, (std::vector<std::uint32_t>{0, 0, 0, 1, 1, 2}));
@@ -339,6 +343,8 @@ TEST(Dataset, RoundTripEveryField) {
     EXPECT_EQ(pc[i], l.path_count);
     EXPECT_EQ(po[i], x.path_offset[i]);
     EXPECT_EQ(below[i], l.paths_below_threshold);
+    EXPECT_EQ(zone[i], l.los_class_fresnel);
+    EXPECT_EQ(clearance[i], l.fresnel_clearance);
   }
   EXPECT_TRUE(std::isinf(gc[2]) && gc[2] < 0);
   EXPECT_EQ(flags[2], kLinkOutOfRange);
@@ -416,7 +422,7 @@ TEST(Dataset, RoundTripEveryField) {
   EXPECT_TRUE(problems.empty()) << joined(problems);
 
   const auto info = dataset_info(file.string());
-  EXPECT_EQ(info["schema_version"], "1.1.0");
+  EXPECT_EQ(info["schema_version"], "1.2.0");
   EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
   EXPECT_EQ(info["frames"], 3);
   EXPECT_EQ(info["time_start_s"], 0.0);
@@ -567,6 +573,17 @@ TEST(Dataset, CorruptFilesAreRejected) {
     set_str_attr(p, "schema_version", "1.0.0");
     EXPECT_TRUE(validate_dataset(p.string()).empty()) << joined(validate_dataset(p.string()));
   }
+  {  // (b3) the Fresnel label, added in 1.2.0: a 1.1.0 file without it validates
+    const fs::path p = copy("nofresnel.h5");
+    {
+      H5 f{H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+      ASSERT_GE(H5Ldelete(f.id, "/links/los_class_fresnel", H5P_DEFAULT), 0);
+      ASSERT_GE(H5Ldelete(f.id, "/links/fresnel_clearance", H5P_DEFAULT), 0);
+    }
+    EXPECT_TRUE(mentions(validate_dataset(p.string()), "/links/los_class_fresnel"));
+    set_str_attr(p, "schema_version", "1.1.0");
+    EXPECT_TRUE(validate_dataset(p.string()).empty()) << joined(validate_dataset(p.string()));
+  }
   {  // (c) an unsupported major version
     const fs::path p = copy("v2.h5");
     set_str_attr(p, "schema_version", "2.0.0");
@@ -692,6 +709,8 @@ void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecor
       EXPECT_EQ(bits(p.rms_delay_spread_s), bits(q.rms_delay_spread_s));
       EXPECT_EQ(p.path_count, q.path_count);
       EXPECT_EQ(p.paths_below_threshold, q.paths_below_threshold);
+      EXPECT_EQ(p.los_class_fresnel, q.los_class_fresnel);
+      EXPECT_EQ(bits(p.fresnel_clearance), bits(q.fresnel_clearance));
     }
     ASSERT_EQ(x.paths.size(), y.paths.size());
     for (std::size_t i = 0; i < x.paths.size(); ++i) {
@@ -740,7 +759,7 @@ TEST(FrameBlock, RoundTripIsExact) {
   write_frame_block(p, frames);
   EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
   const std::string bytes = read_bytes(p);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK2\n"));
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK3\n"));
   const auto back = read_frame_block(p);
   expect_same(frames, back);
   EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));

@@ -60,7 +60,7 @@ ImageFaces image_faces(const TraceScene& scene) {
   }
   for (std::size_t v = 0; v < scene.vehicles().size(); ++v) t.vehicle_spheres.push_back(scene.vehicle_sphere(v));
   for (std::uint32_t f = 0; f < t.static_count; ++f)
-    if (std::fabs(t.planes[f].normal[2]) > 0.999 && t.spheres[f].radius >= 25) t.ground.push_back(f);
+    if (scene.is_ground(f)) t.ground.push_back(f);
   return t;
 }
 

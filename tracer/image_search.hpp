@@ -46,7 +46,7 @@ struct ImageFaces {
   std::uint32_t static_count = 0;
   std::vector<std::uint32_t> vehicle_begin;  // first face of vehicle v in refs (size vehicles + 1)
   std::vector<TraceScene::Sphere> vehicle_spheres;
-  std::vector<std::uint32_t> ground;         // static faces that are ground (horizontal, radius >= 25 m)
+  std::vector<std::uint32_t> ground;         // static faces that are ground (TraceScene::is_ground)
 };
 // True when the image search enumerates every sequence of this kind for a
 // pair whose ends ride vehicles `vehicle_a` and `vehicle_b` (-1: none).

@@ -11,6 +11,7 @@
 #include <unordered_map>
 #include <unordered_set>
 
+#include "tracer/fresnel.hpp"
 #include "tracer/image_search.hpp"
 
 namespace raysweep::tracer {
@@ -803,6 +804,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   if (cfg.diffraction && !scene.edges().empty()) seen = edges_seen(scene, nodes, is_source, range);
 
   const double lambda = em.wavelength();
+  const FresnelObstacles obstacles(scene);
   snap.pairs.resize(pairs.size());
   tbb::enumerable_thread_specific<std::uint64_t> pair_rays(0);
   tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t p) {
@@ -812,6 +814,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     res.rx = j;
     auto& rays = pair_rays.local();
     res.los_class = classify_los(scene, nodes[i].position, nodes[j].position, res.blockers, &rays);
+    const auto zone = obstacles.between(nodes[i].position, nodes[j].position, lambda, nodes[i].vehicle,
+                                        nodes[j].vehicle);
+    res.fresnel_class = fresnel_class(res.los_class, zone);
+    res.fresnel_clearance = zone.clearance;
     if (!in_range[p]) {
       res.out_of_range = true;
       res.stats = path_stats(res.paths);

@@ -667,6 +667,32 @@ const std::vector<std::uint32_t>& TraceScene::static_faces_reaching(std::uint32_
   return impl_->reaching.at(2 * std::size_t{f} + (side > 0 ? 0 : 1));
 }
 
+void TraceScene::face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3>>& out) const {
+  const auto& d = *impl_;
+  const Shape& s = d.shape_of(f, vehicles_);
+  double c = 1, sn = 0;
+  Vec3 t{0, 0, 0};
+  if (f.instance > 0) {
+    const std::size_t v = f.instance - 1;
+    c = d.cos_yaw[v];
+    sn = d.sin_yaw[v];
+    t = vehicles_[v].position;
+  }
+  for (std::uint32_t k = s.face_tri_begin[f.face]; k < s.face_tri_begin[f.face + 1]; ++k) {
+    std::array<Vec3, 3> tri;
+    for (int q = 0; q < 3; ++q) {
+      const Vec3& m = s.vertices[s.triangles[s.face_tris[k]][q]];
+      tri[q] = Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + t;
+    }
+    out.push_back(tri);
+  }
+}
+
+bool TraceScene::is_ground(std::uint32_t f) const {
+  const auto& w = impl_->world;
+  return std::fabs(w.face_plane.at(f).normal[2]) > 0.999 && w.face_sphere[f].radius >= 25;
+}
+
 TraceScene::Sphere TraceScene::vehicle_sphere(std::size_t v) const {
   const auto& d = *impl_;
   const Sphere& b = d.models[vehicles_[v].model]->bounds;

@@ -9,6 +9,7 @@
 // names (FaceRef), which is also what the image method reflects in.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -121,6 +122,13 @@ class TraceScene {
     double radius = 0;
   };
   Sphere face_sphere(const FaceRef& f) const;  // world frame
+  // World vertices of face f's triangles, appended to `out`.
+  void face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3>>& out) const;
+  // Static faces that are ground: horizontal (|n_z| > 0.999) with a
+  // bounding radius >= 25 m (the ground, large squares). Their reflection is
+  // a path; they do not obstruct (tracer/fresnel) and pair with every
+  // vehicle in the image search.
+  bool is_ground(std::uint32_t static_face) const;
   // Static faces with a vertex strictly on the `side` (> 0: front, < 0:
   // back) of static face f's plane, computed once with the scene: the only
   // faces a path reflected by f can go on to.

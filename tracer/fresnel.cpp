@@ -1,0 +1,240 @@
+#include "tracer/fresnel.hpp"
+
+#include "tracer/em.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <vector>
+
+namespace raysweep::tracer {
+
+namespace {
+
+struct P2 {
+  double x, y;
+};
+P2 sub2(P2 a, P2 b) { return {a.x - b.x, a.y - b.y}; }
+double dot2(P2 a, P2 b) { return a.x * b.x + a.y * b.y; }
+double cross2(P2 a, P2 b) { return a.x * b.y - a.y * b.x; }
+
+// Closest point of triangle (a, b, c) to the origin: its distance and
+// barycentric weights (Ericson, Real-Time Collision Detection 5.1.5, in 2D).
+double closest_to_origin(P2 a, P2 b, P2 c, std::array<double, 3>& w) {
+  const P2 p{0, 0};
+  const P2 ab = sub2(b, a), ac = sub2(c, a), ap = sub2(p, a);
+  const double d1 = dot2(ab, ap), d2 = dot2(ac, ap);
+  auto at = [&](double wa, double wb, double wc) {
+    w = {wa, wb, wc};
+    const P2 q{wa * a.x + wb * b.x + wc * c.x, wa * a.y + wb * b.y + wc * c.y};
+    return std::sqrt(dot2(q, q));
+  };
+  if (d1 <= 0 && d2 <= 0) return at(1, 0, 0);
+  const P2 bp = sub2(p, b);
+  const double d3 = dot2(ab, bp), d4 = dot2(ac, bp);
+  if (d3 >= 0 && d4 <= d3) return at(0, 1, 0);
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return at(1 - v, v, 0);
+  }
+  const P2 cp = sub2(p, c);
+  const double d5 = dot2(ab, cp), d6 = dot2(ac, cp);
+  if (d6 >= 0 && d5 <= d6) return at(0, 0, 1);
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double v = d2 / (d2 - d6);
+    return at(1 - v, 0, v);
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double v = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return at(0, 1 - v, v);
+  }
+  const double den = 1 / (va + vb + vc);
+  if (!std::isfinite(den)) return at(1, 0, 0);  // degenerate (a segment or a point seen end-on)
+  const double v = vb * den, x = vc * den;
+  w = {1 - v - x, v, x};
+  return 0;  // inside
+}
+
+// Where the ray s * dir (s >= 0) leaves triangle (a, b, c), or -1 when it
+// does not meet it. Triangles seen edge-on (faces parallel to the line) have
+// no inside: their outline is covered by the faces across the line.
+double exit_along(P2 a, P2 b, P2 c, P2 dir) {
+  const double area2 = cross2(sub2(b, a), sub2(c, a));
+  const double scale = dot2(sub2(b, a), sub2(b, a)) + dot2(sub2(c, a), sub2(c, a));
+  if (std::fabs(area2) <= 1e-9 * scale) return -1;
+  const double orient = area2 >= 0 ? 1 : -1;
+  double lo = 0, hi = 1e300;
+  const P2 v[3] = {a, b, c};
+  for (int k = 0; k < 3; ++k) {
+    const P2 e = sub2(v[(k + 1) % 3], v[k]);
+    const P2 n{-orient * e.y, orient * e.x};  // inward normal
+    // Inside: n . (s dir - v_k) >= 0.
+    const double nd = dot2(n, dir), nv = dot2(n, v[k]);
+    if (std::fabs(nd) < 1e-300) {
+      if (nv > 0) return -1;
+      continue;
+    }
+    const double s = nv / nd;
+    if (nd > 0) lo = std::max(lo, s);
+    else hi = std::min(hi, s);
+  }
+  return lo <= hi ? hi : -1;
+}
+
+// Clearance of one obstacle (its triangles) from the line a + t u, t in
+// (0, d), over the first Fresnel radius there.
+double obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& near,
+                          const Vec3& a, const Vec3& u, const Vec3& e1, const Vec3& e2, double d, double lambda) {
+  auto r1 = [&](double t) {
+    t = std::clamp(t, 1e-3 * d, d - 1e-3 * d);
+    return std::sqrt(lambda * t * (d - t) / d);
+  };
+  double best = 1e300;
+  double blocked_t = -1;
+  // Projection onto the plane across the line; false: beyond an end.
+  auto project = [&](const std::array<Vec3, 3>& tri, std::array<P2, 3>& q, std::array<double, 3>& t) {
+    int before = 0, after = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Vec3 w = tri[k] - a;
+      t[k] = dot(w, u);
+      q[k] = {dot(w, e1), dot(w, e2)};
+      before += t[k] <= 0;
+      after += t[k] >= d;
+    }
+    return before < 3 && after < 3;
+  };
+  for (auto index : near) {
+    std::array<P2, 3> q;
+    std::array<double, 3> t;
+    if (!project(tris[index], q, t)) continue;
+    std::array<double, 3> w;
+    const double h = closest_to_origin(q[0], q[1], q[2], w);
+    const double tc = w[0] * t[0] + w[1] * t[1] + w[2] * t[2];
+    if (h <= 0) {
+      if (tc > 0 && tc < d) blocked_t = tc;
+      continue;
+    }
+    best = std::min(best, h / r1(tc));
+  }
+  if (blocked_t < 0) return best;
+  // Crossed: the shortest shift that clears the outline (every triangle),
+  // over 32 directions.
+  std::vector<std::array<P2, 3>> outline;
+  for (const auto& tri : tris) {
+    std::array<P2, 3> q;
+    std::array<double, 3> t;
+    if (project(tri, q, t)) outline.push_back(q);
+  }
+  double depth = 1e300;
+  for (int k = 0; k < 32; ++k) {
+    const double phi = 2 * kPi * k / 32;
+    const P2 dir{std::cos(phi), std::sin(phi)};
+    double out = 0;
+    for (const auto& q : outline) out = std::max(out, exit_along(q[0], q[1], q[2], dir));
+    depth = std::min(depth, out);
+  }
+  return -depth / r1(blocked_t);
+}
+
+}  // namespace
+
+FresnelObstacles::FresnelObstacles(const TraceScene& scene) {
+  auto sphere_of = [](const std::vector<std::array<Vec3, 3>>& tris) {
+    Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+    for (const auto& t : tris)
+      for (const auto& p : t)
+        for (int k = 0; k < 3; ++k) {
+          lo[k] = std::min(lo[k], p[k]);
+          hi[k] = std::max(hi[k], p[k]);
+        }
+    return TraceScene::Sphere{0.5 * (lo + hi), 0.5 * norm(hi - lo)};
+  };
+  for (std::size_t v = 0; v < scene.vehicles().size(); ++v) {
+    Obstacle o;
+    o.vehicle = true;
+    const auto inst = static_cast<std::uint32_t>(v + 1);
+    for (std::uint32_t face = 0; face < scene.face_count(inst); ++face) {
+      o.face_begin.push_back(static_cast<std::uint32_t>(o.triangles.size()));
+      o.face_spheres.push_back(scene.face_sphere({inst, face}));
+      scene.face_triangles({inst, face}, o.triangles);
+    }
+    o.face_begin.push_back(static_cast<std::uint32_t>(o.triangles.size()));
+    o.sphere = scene.vehicle_sphere(v);
+    obstacles_.push_back(std::move(o));
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> faces;  // (object, face)
+  for (std::uint32_t face = 0; face < scene.face_count(0); ++face)
+    if (!scene.is_ground(face)) faces.emplace_back(scene.object({0, face}), face);
+  std::sort(faces.begin(), faces.end());
+  for (std::size_t i = 0; i < faces.size();) {
+    Obstacle o;
+    std::size_t j = i;
+    for (; j < faces.size() && faces[j].first == faces[i].first; ++j) {
+      o.face_begin.push_back(static_cast<std::uint32_t>(o.triangles.size()));
+      o.face_spheres.push_back(scene.face_sphere({0, faces[j].second}));
+      scene.face_triangles({0, faces[j].second}, o.triangles);
+    }
+    o.face_begin.push_back(static_cast<std::uint32_t>(o.triangles.size()));
+    o.sphere = sphere_of(o.triangles);
+    obstacles_.push_back(std::move(o));
+    i = j;
+  }
+}
+
+FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, double lambda, int skip_a,
+                                             int skip_b) const {
+  FresnelObstruction f;
+  const double d = norm(b - a);
+  if (!(d > 0)) return f;
+  const Vec3 u = (1.0 / d) * (b - a);
+  const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
+  // Whether a sphere can come within the first zone (clearance < 1)
+  // between the ends: r1 is largest at mid-path, so take it at the sphere's
+  // axial point nearest there.
+  auto reach_of = [&](const TraceScene::Sphere& s) {
+    const Vec3 w = s.centre - a;
+    const double t = dot(w, u);
+    if (t < -s.radius || t > d + s.radius) return -1.0;
+    const double t_mid = std::clamp(0.5 * d, std::clamp(t - s.radius, 0.0, d), std::clamp(t + s.radius, 0.0, d));
+    const double reach = std::sqrt(lambda * t_mid * (d - t_mid) / d);
+    return dot(w, w) - t * t <= (s.radius + reach) * (s.radius + reach) ? reach : -1.0;
+  };
+  std::vector<std::uint32_t> near;
+  for (std::size_t k = 0; k < obstacles_.size(); ++k) {
+    const Obstacle& o = obstacles_[k];
+    if (o.vehicle && (static_cast<int>(k) == skip_a || static_cast<int>(k) == skip_b)) continue;
+    const double reach = reach_of(o.sphere);  // bounds r1 over every face of the obstacle
+    if (reach < 0) continue;
+    near.clear();
+    for (std::size_t face = 0; face + 1 < o.face_begin.size(); ++face) {
+      const auto& fs = o.face_spheres[face];
+      const Vec3 w = fs.centre - a;
+      const double t = dot(w, u), r = fs.radius + reach;
+      if (t < -fs.radius || t > d + fs.radius || dot(w, w) - t * t > r * r) continue;
+      for (std::uint32_t q = o.face_begin[face]; q < o.face_begin[face + 1]; ++q) near.push_back(q);
+    }
+    if (near.empty()) continue;
+    double& worst = o.vehicle ? f.vehicle_clearance : f.static_clearance;
+    worst = std::min(worst, obstacle_clearance(o.triangles, near, a, u, e1, e2, d, lambda));
+  }
+  f.vehicle_clearance = std::min(f.vehicle_clearance, 1.0);
+  f.static_clearance = std::min(f.static_clearance, 1.0);
+  f.clearance = std::min(f.vehicle_clearance, f.static_clearance);
+  return f;
+}
+
+FresnelObstruction fresnel_obstruction(const TraceScene& scene, const Vec3& a, const Vec3& b, double lambda, int skip_a,
+                                       int skip_b) {
+  return FresnelObstacles(scene).between(a, b, lambda, skip_a, skip_b);
+}
+
+LosClass fresnel_class(LosClass geometric, const FresnelObstruction& f) {
+  if (geometric == LosClass::NLOS || f.static_clearance < kFresnelZoneFraction) return LosClass::NLOS;
+  if (geometric == LosClass::NLOSV || f.vehicle_clearance < kFresnelZoneFraction) return LosClass::NLOSV;
+  return LosClass::LOS;
+}
+
+}  // namespace raysweep::tracer
