@@ -879,6 +879,29 @@ TEST(Dataset, PythonReader) {
                        file.string() + "' '" + expected.string() + "' '" + (dir / "scratch").string() + "'");
   EXPECT_EQ(r.exit_code, 0) << r.output;
 
+  // los_fractions.py: the overall row's label fractions are the written ones
+  // (out-of-range links left out).
+  const fs::path fractions = dir / "los.json";
+  r = run_command(py + "'" + (source_dir() / "python" / "los_fractions.py").string() + "' '" + file.string() +
+                  "' --json '" + fractions.string() + "'");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  {
+    double geo[3] = {0, 0, 0}, zone[3] = {0, 0, 0}, n = 0;
+    for (const auto& l : x.links) {
+      if (l.flags & kLinkOutOfRange) continue;
+      geo[l.los_class] += 1;
+      zone[l.los_class_fresnel] += 1;
+      n += 1;
+    }
+    const nlohmann::json got = nlohmann::json::parse(raysweep::test::read_text(fractions));
+    const nlohmann::json& all = got["rows"].back();
+    EXPECT_EQ(all["links"], static_cast<int>(n));
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(all["geometric"][c].get<double>(), geo[c] / n, 1e-12) << c;
+      EXPECT_NEAR(all["fresnel"][c].get<double>(), zone[c] / n, 1e-12) << c;
+    }
+  }
+
   const fs::path png = dir / "gain.png";
   r = run_command(py + "'" + (source_dir() / "python" / "example_dataset.py").string() + "' '" + file.string() +
                   "' --png '" + png.string() + "'");
