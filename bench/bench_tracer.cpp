@@ -24,9 +24,13 @@
 //   BM_Snapshot/<scene>/N        trace_snapshot for N vehicles (N = 5 ... 120)
 //                                with the default TracerConfig (depth 3, LoS +
 //                                specular + refraction, 4096 rays per source)
-//                                and default RadioConfig (5.9 GHz); a third
-//                                argument bit 4 swaps the exact image search
-//                                for shoot-and-bounce alone. Poses come
+//                                and default RadioConfig (5.9 GHz); the second
+//                                argument's bits add diffraction (1) and
+//                                diffuse scattering (2), swap the exact image
+//                                search for shoot-and-bounce alone (4), and
+//                                integrate diffuse by tiles (8). Counters
+//                                ms_* / tms_* say where the time went
+//                                (SnapshotStats::Timing). Poses come
 //                                from place_on_lanes(net, N, seed 1,
 //                                passenger:truck:bus = 8:1:1); when that mix does
 //                                not fit, passenger cars only (counter
@@ -56,6 +60,8 @@
 #endif
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <exception>
 #include <filesystem>
@@ -256,10 +262,11 @@ void BM_EmbreeRaw(benchmark::State& state, const std::string& name) {
 // the specular/refraction core (the tracer's defaults otherwise).
 // kSbr: the same with shoot-and-bounce alone as the candidate search (what
 // the exact image search costs and buys).
-enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3, kSbr = 4 };
+// kTiles: diffuse scattering integrated by surface tiles instead of rays.
+enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3, kSbr = 4, kTiles = 8 };
 std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
-  return std::string(names[m & 3]) + (m & kSbr ? ", sbr search" : ", image search");
+  return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search");
 }
 
 void BM_Snapshot(benchmark::State& state, const std::string& name) {
@@ -273,6 +280,7 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   cfg.diffraction = mech & kDiffraction;
   cfg.diffuse = mech & kDiffuse;
   if (mech & kSbr) cfg.candidates = tracer::CandidateSearch::sbr;
+  if (mech & kTiles) cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   for (auto _ : state) {
@@ -306,6 +314,20 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   for (std::uint32_t v = 1; v <= scene->vehicles().size(); ++v) vehicle_faces += scene->face_count(v);
   state.counters["image_sources"] = static_cast<double>(snap.stats.image_sources);
   state.counters["image_tests"] = static_cast<double>(snap.stats.image_tests);
+  // Where the time went (last iteration; ms; per-pair steps in thread-ms).
+  const auto& tm = snap.stats.time;
+  state.counters["ms_image"] = 1e3 * tm.image_search;
+  state.counters["ms_shoot"] = 1e3 * tm.shoot;
+  state.counters["ms_edges"] = 1e3 * tm.edges;
+  state.counters["ms_diffuse_views"] = 1e3 * tm.diffuse_views;
+  state.counters["diffuse_tiles"] = static_cast<double>(snap.stats.diffuse_tiles);
+  state.counters["diffuse_views"] = static_cast<double>(snap.stats.diffuse_views);
+  state.counters["tms_diffuse"] = 1e3 * tm.diffuse;
+  state.counters["ms_pairs"] = 1e3 * tm.pairs;
+  state.counters["tms_los"] = 1e3 * tm.los;
+  state.counters["tms_exact"] = 1e3 * tm.exact;
+  state.counters["tms_diffraction"] = 1e3 * tm.diffraction;
+  state.counters["tms_assemble"] = 1e3 * tm.assemble;
   state.counters["static_faces"] = static_cast<double>(scene->face_count(0));
   state.counters["vehicle_faces"] = static_cast<double>(vehicle_faces);
   state.counters["LOS"] = static_cast<double>(los);
@@ -317,6 +339,89 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["buses"] = static_cast<double>(buses);
   state.SetLabel(mechanisms_name(mech) +
                  (used->passenger_only ? ", mix passenger" : ", mix passenger:truck:bus 8:1:1"));
+}
+
+// Per-pair diffuse power (sum of |a|^2 over paths ending in a diffuse
+// interaction).
+std::vector<double> diffuse_power(const tracer::Snapshot& snap) {
+  std::vector<double> p;
+  for (const auto& pair : snap.pairs) {
+    double sum = 0;
+    for (const auto& path : pair.paths)
+      if (!path.interactions.empty() && path.interactions.back().type == tracer::InteractionType::diffuse)
+        sum += std::norm(path.a);
+    p.push_back(sum);
+  }
+  return p;
+}
+
+// |10 log10(got / ref)| over the listed pairs (200 dB where got has none):
+// median and 95th percentile, and the ratio of the summed powers.
+void report_error(benchmark::State& state, const std::string& name, const std::vector<double>& got,
+                  const std::vector<double>& ref, const std::vector<unsigned char>& use) {
+  std::vector<double> err;
+  double sg = 0, sr = 0;
+  for (std::size_t i = 0; i < ref.size(); ++i) {
+    if (!use[i] || !(ref[i] > 0)) continue;
+    sg += got[i];
+    sr += ref[i];
+    err.push_back(got[i] > 0 ? std::fabs(10 * std::log10(got[i] / ref[i])) : 200.0);
+  }
+  std::sort(err.begin(), err.end());
+  auto q = [&](double f) { return err.empty() ? 0.0 : err[static_cast<std::size_t>(f * (err.size() - 1))]; };
+  state.counters[name + "_db_median"] = q(0.5);
+  state.counters[name + "_db_p95"] = q(0.95);
+  state.counters[name + "_power_ratio"] = sr > 0 ? sg / sr : 0;
+}
+
+std::vector<double> total_power(const tracer::Snapshot& snap) {
+  std::vector<double> p;
+  for (const auto& pair : snap.pairs) p.push_back(pair.stats.gain_incoherent);
+  return p;
+}
+
+// BM_DiffuseAccuracy/<scene>/N: every mechanism at the defaults (timed),
+// against the same with a fine tile integration (tiles of 0.25 m, ratio
+// 0.05) and with the ray estimator (diffuse_integration = "rays", 4096 and
+// 65536 rays per source, scattering after up to two reflections). Per pair:
+// the total incoherent gain ("total_*"), and the diffuse power where the
+// reference's diffuse part is at least 1 % of its total ("diffuse_*").
+void BM_DiffuseAccuracy(benchmark::State& state, const std::string& name) {
+  const int n = static_cast<int>(state.range(0));
+  tracer::TraceScene* scene = scene_with_vehicles(state, name, n);
+  if (!scene) return;
+  const auto nodes = tracer::vehicle_nodes(*scene);
+  tracer::TracerConfig cfg;
+  cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
+  const tracer::RadioConfig radio;
+  tracer::Snapshot snap;
+  for (auto _ : state) {
+    snap = tracer::trace_snapshot(*scene, nodes, cfg, radio);
+    benchmark::DoNotOptimize(snap.pairs.data());
+  }
+  tracer::TracerConfig fine = cfg;
+  fine.diffuse_tile_m = 0.25;
+  fine.diffuse_tile_ratio = 0.05;
+  const auto ref = tracer::trace_snapshot(*scene, nodes, fine, radio);
+  const auto ref_total = total_power(ref), ref_diffuse = diffuse_power(ref);
+  std::vector<unsigned char> all(ref_total.size(), 1), relevant(ref_total.size(), 0);
+  for (std::size_t i = 0; i < ref_total.size(); ++i) relevant[i] = ref_diffuse[i] >= 0.01 * ref_total[i];
+  auto compare = [&](const std::string& name, const tracer::Snapshot& s) {
+    report_error(state, name + "total", total_power(s), ref_total, all);
+    report_error(state, name + "diffuse", diffuse_power(s), ref_diffuse, relevant);
+  };
+  compare("", snap);
+  tracer::TracerConfig rays = cfg;
+  rays.diffuse_integration = tracer::DiffuseIntegration::rays;
+  for (int k : {4096, 65536}) {
+    rays.rays_per_source = k;
+    compare("rays" + std::to_string(k) + "_", tracer::trace_snapshot(*scene, nodes, rays, radio));
+  }
+  state.counters["relevant_pairs"] = static_cast<double>(std::count(relevant.begin(), relevant.end(), 1));
+  state.counters["tiles"] = static_cast<double>(snap.stats.diffuse_tiles);
+  state.counters["views"] = static_cast<double>(snap.stats.diffuse_views);
+  state.counters["ms_views"] = 1e3 * snap.stats.time.diffuse_views;
+  state.counters["tms_pairs"] = 1e3 * snap.stats.time.diffuse;
 }
 
 void register_all() {
@@ -334,10 +439,19 @@ void register_all() {
         ->UseRealTime();
     auto* snap = benchmark::RegisterBenchmark(("BM_Snapshot/" + scene).c_str(), BM_Snapshot, scene);
     for (int n : {5, 10, 20, 40, 60, 120}) snap->Args({n, kSpecular});
+    // Every mechanism, how it grows with vehicles (issue 14).
+    for (int n : {5, 10, 20, 40, 120}) snap->Args({n, kAll});
     // The cost of each mechanism (issue 5), at two traffic densities.
     for (int n : {20, 60})
-      for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll}) snap->Args({n, m});
+      for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll})
+        snap->Args({n, m});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
+    benchmark::RegisterBenchmark(("BM_DiffuseAccuracy/" + scene).c_str(), BM_DiffuseAccuracy, scene)
+        ->Arg(20)
+        ->Arg(60)
+        ->Iterations(1)
+        ->Unit(benchmark::kMillisecond)
+        ->UseRealTime();
   }
 }
 

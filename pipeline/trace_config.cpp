@@ -49,6 +49,13 @@ TraceSettings load_trace_config(const std::string& path) {
         else if (v == "exhaustive") t.candidates = tracer::CandidateSearch::exhaustive;
         else throw ConfigError(where(path, full, node) + ": expected \"image\", \"sbr\" or \"exhaustive\"");
       } else if (key == "diffuse") t.diffuse = boolean(path, full, node);
+      else if (key == "diffuse_integration") {
+        const std::string v = text(path, full, node);
+        if (v == "tiles") t.diffuse_integration = tracer::DiffuseIntegration::tiles;
+        else if (v == "rays") t.diffuse_integration = tracer::DiffuseIntegration::rays;
+        else throw ConfigError(where(path, full, node) + ": expected \"tiles\" or \"rays\"");
+      } else if (key == "diffuse_tile_m") t.diffuse_tile_m = number(path, full, node);
+      else if (key == "diffuse_tile_ratio") t.diffuse_tile_ratio = number(path, full, node);
       else if (key == "diffraction") t.diffraction = boolean(path, full, node);
       else if (key == "path_threshold_db") t.path_threshold_db = number(path, full, node);
       else if (key == "range_margin_db") t.range_margin_db = number(path, full, node);
@@ -133,6 +140,9 @@ nlohmann::json TraceSettings::to_json() const {
             {"max_transmissions", tracer.max_transmissions},
             {"sbr_transmission_loss_db", tracer.sbr_transmission_loss_db},
             {"diffuse", tracer.diffuse},
+            {"diffuse_integration", tracer.diffuse_integration == tracer::DiffuseIntegration::tiles ? "tiles" : "rays"},
+            {"diffuse_tile_m", tracer.diffuse_tile_m},
+            {"diffuse_tile_ratio", tracer.diffuse_tile_ratio},
             {"diffraction", tracer.diffraction},
             {"path_threshold_db", tracer.path_threshold_db},
             {"range_margin_db", tracer.range_margin_db}}},

@@ -265,6 +265,9 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     ref.tracer.max_depth = ref_depth;
     ref.tracer.los = ref.tracer.specular = ref.tracer.refraction = ref.tracer.diffuse = ref.tracer.diffraction = true;
     ref.tracer.path_threshold_db = 0;  // keep every path
+    // Diffuse tiles (when the base integrates by tiles): converged.
+    ref.tracer.diffuse_tile_m = std::min(base.diffuse_tile_m, 0.25);
+    ref.tracer.diffuse_tile_ratio = std::min(base.diffuse_tile_ratio, 0.05);
     ref.lod = 0;
     grid.push_back(ref);
   }
@@ -306,6 +309,19 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s = variant("specular only");
       s.tracer.diffuse = s.tracer.diffraction = false;
       grid.push_back(s);
+    }
+    // The diffuse integration: the other method, and coarser tiles.
+    if (base.diffuse) {
+      const bool tiles = base.diffuse_integration == tracer::DiffuseIntegration::tiles;
+      s = variant(tiles ? "diffuse by rays" : "diffuse by tiles");
+      s.tracer.diffuse_integration = tiles ? tracer::DiffuseIntegration::rays : tracer::DiffuseIntegration::tiles;
+      grid.push_back(s);
+      if (tiles) {
+        s = variant("coarse tiles");
+        s.tracer.diffuse_tile_m = 4 * base.diffuse_tile_m;
+        s.tracer.diffuse_tile_ratio = 2 * base.diffuse_tile_ratio;
+        grid.push_back(s);
+      }
     }
     // What the exact image search costs and buys over sampling alone.
     if (base.candidates != tracer::CandidateSearch::exhaustive) {

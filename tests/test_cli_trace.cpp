@@ -128,6 +128,17 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("tracer.max_dept"), std::string::npos) << r.output;
 
+  write_text(dir / "c.toml", "[tracer]\ndiffuse_integration = \"voxels\"\n");
+  r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("tracer.diffuse_integration"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"tiles\" or \"rays\""), std::string::npos) << r.output;
+
+  write_text(dir / "c.toml", "[tracer]\ndiffuse_tile_m = 0\n");
+  r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("tracer.diffuse_tile_m"), std::string::npos) << r.output;
+
   write_text(dir / "c.toml", "[radio]\nfrequency_hz = 28e9\n");
   r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
   EXPECT_EQ(r.exit_code, 2);
@@ -148,6 +159,36 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
 
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(dir / "t.h5"));
+}
+
+TEST(CliTrace, DiffuseByTilesIsRecordedAndReciprocal) {
+  auto dir = scratch_dir("tiles");
+  write_text(dir / "nodes.csv", "a,100,40,2\nb,150,45,2\nc,120,70,1.5\n");
+  write_text(dir / "c.toml", "[tracer]\ndiffuse_integration = \"tiles\"\ndiffuse_tile_m = 2\n");
+  write_text(dir / "rev.csv", "c,120,70,1.5\nb,150,45,2\na,100,40,2\n");
+  json runs[2];
+  int k = 0;
+  for (const char* nodes : {"nodes.csv", "rev.csv"}) {
+    auto r = run_raysweep("-q trace --scene " + demo_scene().string() + " --nodes " + (dir / nodes).string() +
+                          " --config " + (dir / "c.toml").string() + " --out " + (dir / "t.json").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    runs[k++] = json::parse(read_text(dir / "t.json"));
+  }
+  const auto& cfg = runs[0]["provenance"]["config"]["tracer"];
+  EXPECT_EQ(cfg["diffuse_integration"], "tiles");
+  EXPECT_EQ(cfg["diffuse_tile_m"], 2.0);
+  // Pair a-b is (0, 1) in one run and (1, 2) in the other: the same gain.
+  auto gain = [](const json& j, const std::string& x, const std::string& y) {
+    for (const auto& p : j["pairs"]) {
+      const std::string tx = p["tx"], rx = p["rx"];
+      if ((tx == x && rx == y) || (tx == y && rx == x)) return p["path_gain_incoherent_db"].get<double>();
+    }
+    return 0.0;
+  };
+  for (auto [x, y] : {std::pair{"a", "b"}, std::pair{"a", "c"}, std::pair{"b", "c"}}) {
+    EXPECT_LT(gain(runs[0], x, y), -40) << x << "-" << y;
+    EXPECT_EQ(gain(runs[0], x, y), gain(runs[1], x, y)) << x << "-" << y;
+  }
 }
 
 TEST(CliTrace, FrequencyResponseOnOfdmGrids) {

@@ -29,6 +29,17 @@ enum class CandidateSearch {
   exhaustive  // every face sequence up to max_depth: small scenes and tests only
 };
 
+// How the diffuse field is integrated over the rough surfaces.
+enum class DiffuseIntegration {
+  // Monte Carlo over the shoot-and-bounce rays' hits, also after earlier
+  // reflections and through slabs; reciprocal in expectation only. Default.
+  rays,
+  // Deterministic: static surfaces cut into a tree of tiles
+  // (tracer/diffuse.hpp), visibility per node, midpoint rule per pair;
+  // converged and bitwise reciprocal, first-order scattering only.
+  tiles
+};
+
 struct TracerConfig {
   int max_depth = 3;  // specular reflections per path (0..kMaxDepth)
   bool los = true;
@@ -55,6 +66,13 @@ struct TracerConfig {
   // When on, specular reflections on those materials keep sqrt(1 - S^2) of
   // their field (the R^2 + S^2 = 1 energy partition).
   bool diffuse = true;
+  DiffuseIntegration diffuse_integration = DiffuseIntegration::rays;
+  // Tiles: the finest tile's longest edge (m: where shadow edges are
+  // resolved), and the largest tile used relative to its distance from the
+  // node that looks (visibility) or from the nearer end (integration;
+  // bigger ones are bisected): the midpoint rule's error stays O(ratio^2).
+  double diffuse_tile_m = 1.0;
+  double diffuse_tile_ratio = 0.25;
   // First-order UTD edge diffraction on the static scene's wedges
   // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
   bool diffraction = true;

@@ -5,12 +5,14 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <map>
 #include <unordered_map>
 #include <unordered_set>
 
+#include "tracer/diffuse.hpp"
 #include "tracer/fresnel.hpp"
 #include "tracer/image_search.hpp"
 
@@ -24,6 +26,10 @@ cdouble cdot(const CVec3& e, const Vec3& v) { return e[0] * v[0] + e[1] * v[1] +
 CVec3 cvec(const Vec3& v) { return {cdouble(v[0]), cdouble(v[1]), cdouble(v[2])}; }
 CVec3 combine(cdouble a, const Vec3& u, cdouble b, const Vec3& w) {
   return {a * u[0] + b * w[0], a * u[1] + b * w[1], a * u[2] + b * w[2]};
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 // TE basis vector for direction k on a surface with normal n.
@@ -65,6 +71,9 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (!(t.reception_radius_factor > 0)) bad("tracer.reception_radius_factor must be positive");
   if (t.max_transmissions < 0) bad("tracer.max_transmissions must be >= 0");
   if (!(t.sbr_transmission_loss_db >= 0)) bad("tracer.sbr_transmission_loss_db must be >= 0");
+  if (!(t.diffuse_tile_m > 0) || !std::isfinite(t.diffuse_tile_m)) bad("tracer.diffuse_tile_m must be positive");
+  if (!(t.diffuse_tile_ratio > 0) || !std::isfinite(t.diffuse_tile_ratio))
+    bad("tracer.diffuse_tile_ratio must be positive");
   if (!std::isfinite(t.path_threshold_db)) bad("tracer.path_threshold_db must be finite (<= 0 keeps every path)");
   if (std::isnan(t.range_margin_db)) bad("tracer.range_margin_db must be a number");
   if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
@@ -684,7 +693,13 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   std::vector<std::uint32_t> sources;
   std::vector<unsigned char> is_source(n, 0);
   std::vector<unsigned char> in_range(pairs.size(), 1);
-  std::vector<DiffuseTargets> targets(cfg.diffuse ? n : 0);
+  // Diffuse scattering: by surface tiles (default), or gathered from the
+  // shoot-and-bounce rays' hits.
+  const bool ray_diffuse =
+      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration == DiffuseIntegration::rays;
+  const bool tile_diffuse =
+      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration == DiffuseIntegration::tiles;
+  std::vector<DiffuseTargets> targets(ray_diffuse ? n : 0);
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     auto [i, j] = pairs[p];
     if (i >= j || j >= n) throw std::invalid_argument("trace_pairs: pair (" + std::to_string(i) + ", " +
@@ -696,7 +711,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       continue;
     }
     // Diffuse power is gathered from the lower end's rays only.
-    if (cfg.diffuse) targets[i].rx.push_back(j);
+    if (ray_diffuse) targets[i].rx.push_back(j);
     for (auto e : {i, j}) {
       if (is_source[e]) continue;
       is_source[e] = 1;
@@ -709,7 +724,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   }
   std::sort(sources.begin(), sources.end());
   std::vector<std::vector<std::vector<FaceRef>>> candidates(pairs.size());
-  std::vector<std::map<DiffuseKey, DiffuseAcc>> diffuse(cfg.diffuse ? pairs.size() : 0);
+  std::vector<std::map<DiffuseKey, DiffuseAcc>> diffuse(ray_diffuse ? pairs.size() : 0);
 
   std::uint64_t search_rays = 0;
   const bool image = cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::image;
@@ -723,6 +738,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         partners[pairs[p].first].push_back(pairs[p].second);
         partners[pairs[p].second].push_back(pairs[p].first);
       }
+    const auto t_image = std::chrono::steady_clock::now();
     std::vector<std::vector<ImageCandidate>> found(n);
     std::vector<ImageSearchStats> istats(n);
     faces = image_faces(scene);
@@ -741,8 +757,9 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         const std::uint64_t key = static_cast<std::uint64_t>(std::min(i, c.rx)) << 32 | std::max(i, c.rx);
         candidates[slot.at(key)].push_back(std::move(c.faces));
       }
+    snap.stats.time.image_search = seconds_since(t_image);
   }
-  const bool sbr_diffuse = cfg.diffuse && cfg.max_depth > 0;
+  const bool sbr_diffuse = ray_diffuse;
   if (cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::exhaustive) {
     std::vector<std::vector<FaceRef>> all;
     std::vector<FaceRef> current;
@@ -751,6 +768,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       if (in_range[p]) candidates[p] = all;
   }
   if ((sbr_specular || sbr_diffuse) && n > 1) {
+    const auto t_shoot = std::chrono::steady_clock::now();
     const auto lattice = fibonacci_sphere(cfg.rays_per_source);
     const std::size_t chunk = 256;
     const std::size_t chunks = (lattice.size() + chunk - 1) / chunk;
@@ -767,7 +785,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       TracerConfig local = cfg;
       local.specular = sbr_specular;
       shoot_from(scene, em, local, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk),
-                 out.found, out.rays, cfg.diffuse ? &targets[src] : nullptr, &out.bins);
+                 out.found, out.rays, ray_diffuse ? &targets[src] : nullptr, &out.bins);
       if (!sbr_specular) out.found.clear();
     });
     // Merged in task order: the same sums for any thread count.
@@ -797,27 +815,49 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       std::sort(c.begin(), c.end());
       c.erase(std::unique(c.begin(), c.end()), c.end());
     });
+    snap.stats.time.shoot = seconds_since(t_shoot);
   }
 
   // Diffraction: per node the edges it sees, per pair their intersection.
   std::vector<std::vector<std::uint32_t>> seen;
+  std::optional<DiffuseTiles> tiles;
+  if (tile_diffuse && n > 1) {
+    const auto t_tiles = std::chrono::steady_clock::now();
+    tiles.emplace(scene, em, nodes, is_source, cfg, range);
+    search_rays += tiles->rays();
+    snap.stats.diffuse_tiles = tiles->tile_count();
+    snap.stats.diffuse_views = tiles->views();
+    snap.stats.time.diffuse_views = seconds_since(t_tiles);
+  }
+  const auto t_edges = std::chrono::steady_clock::now();
   if (cfg.diffraction && !scene.edges().empty()) seen = edges_seen(scene, nodes, is_source, range);
+  snap.stats.time.edges = seconds_since(t_edges);
 
   const double lambda = em.wavelength();
   const FresnelObstacles obstacles(scene);
   snap.pairs.resize(pairs.size());
   tbb::enumerable_thread_specific<std::uint64_t> pair_rays(0);
+  tbb::enumerable_thread_specific<SnapshotStats::Timing> pair_time;
+  const auto t_pairs = std::chrono::steady_clock::now();
   tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t p) {
     auto [i, j] = pairs[p];
     PairResult& res = snap.pairs[p];
     res.tx = i;
     res.rx = j;
     auto& rays = pair_rays.local();
+    auto& tm = pair_time.local();
+    auto t_step = std::chrono::steady_clock::now();
+    auto lap = [&t_step](double& into) {
+      const auto now = std::chrono::steady_clock::now();
+      into += std::chrono::duration<double>(now - t_step).count();
+      t_step = now;
+    };
     res.los_class = classify_los(scene, nodes[i].position, nodes[j].position, res.blockers, &rays);
     const auto zone = obstacles.between(nodes[i].position, nodes[j].position, lambda, nodes[i].vehicle,
                                         nodes[j].vehicle);
     res.fresnel_class = fresnel_class(res.los_class, zone);
     res.fresnel_clearance = zone.clearance;
+    lap(tm.los);
     if (!in_range[p]) {
       res.out_of_range = true;
       res.stats = path_stats(res.paths);
@@ -833,6 +873,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     if (cfg.los) add({});
     for (const auto& faces : candidates[p]) add(faces);
     res.candidates = static_cast<std::uint32_t>(candidates[p].size() + (cfg.los ? 1 : 0));
+    lap(tm.exact);
     if (!seen.empty()) {
       const auto &ei = seen[i], &ej = seen[j];
       std::size_t x = 0, y = 0;
@@ -848,7 +889,12 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         }
       }
     }
-    if (cfg.diffuse) {
+    lap(tm.diffraction);
+    if (tiles) {
+      tiles->pair_paths(i, j, 1.0 / radio.bandwidth_hz, res.paths);
+      lap(tm.diffuse);
+    }
+    if (ray_diffuse) {
       for (const auto& [dk, acc] : diffuse[p]) {
         if (!(acc.power > 0)) continue;
         Path path;
@@ -901,7 +947,16 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     }
     res.paths = std::move(unique);
     res.stats = path_stats(res.paths);
+    lap(tm.assemble);
   });
+  snap.stats.time.pairs = seconds_since(t_pairs);
+  for (const auto& tm : pair_time) {
+    snap.stats.time.los += tm.los;
+    snap.stats.time.exact += tm.exact;
+    snap.stats.time.diffraction += tm.diffraction;
+    snap.stats.time.diffuse += tm.diffuse;
+    snap.stats.time.assemble += tm.assemble;
+  }
   snap.stats.rays = search_rays;
   for (auto r : pair_rays) snap.stats.rays += r;
   for (const auto& r : snap.pairs) {

@@ -61,6 +61,22 @@ struct SnapshotStats {
   std::uint64_t out_of_range_pairs = 0;
   std::uint64_t diffraction_paths = 0, diffuse_paths = 0;  // kept paths ending in those interactions
   std::uint64_t image_sources = 0, image_tests = 0;         // exact image search (tracer/image_search.hpp)
+  std::uint64_t diffuse_tiles = 0, diffuse_views = 0;       // surface tiles; (node, tile) pairs in sight
+  // Where the time went (seconds). Stages that run one after the other are
+  // wall-clock; the per-pair steps run on every thread at once and are
+  // thread-seconds summed over threads (their shares, not their wall time).
+  struct Timing {
+    double image_search = 0;  // wall: exact image candidates (all sources)
+    double shoot = 0;         // wall: shoot-and-bounce (candidates and diffuse gathering)
+    double diffuse_views = 0; // wall: surface tiles and each node's visibility of them (diffuse)
+    double edges = 0;         // wall: per-node edge visibility pre-pass (diffraction)
+    double pairs = 0;         // wall: the per-pair loop below, in total
+    double los = 0;           // thread-s: geometric LoS class and the Fresnel-zone label
+    double exact = 0;         // thread-s: exact paths of every candidate sequence
+    double diffraction = 0;   // thread-s: diffracted paths
+    double diffuse = 0;       // thread-s: diffuse paths integrated over the tiles both ends see
+    double assemble = 0;      // thread-s: diffuse records, de-duplication, threshold
+  } time;
 };
 
 struct Snapshot {

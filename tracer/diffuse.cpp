@@ -1,0 +1,421 @@
+#include "tracer/diffuse.hpp"
+
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace raysweep::tracer {
+
+namespace {
+
+using CVec3 = std::array<cdouble, 3>;
+
+double longest_edge(const std::array<Vec3, 3>& t) {
+  return std::max({norm(t[1] - t[0]), norm(t[2] - t[1]), norm(t[0] - t[2])});
+}
+
+// Halves `t` across its longest edge.
+std::array<std::array<Vec3, 3>, 2> bisect(const std::array<Vec3, 3>& t) {
+  int k = 0;  // the edge t[k] -> t[k + 1] is the longest
+  double best = -1;
+  for (int e = 0; e < 3; ++e) {
+    const double l = norm(t[(e + 1) % 3] - t[e]);
+    if (l > best) {
+      best = l;
+      k = e;
+    }
+  }
+  const Vec3 &a = t[k], &b = t[(k + 1) % 3], &c = t[(k + 2) % 3];
+  const Vec3 m = 0.5 * (a + b);
+  return {{{a, m, c}, {m, b, c}}};
+}
+
+SurfaceTile make_tile(const std::array<Vec3, 3>& t, std::uint32_t face) {
+  SurfaceTile s;
+  s.v = t;
+  s.centre = (1.0 / 3.0) * (t[0] + t[1] + t[2]);
+  s.area = 0.5 * norm(cross(t[1] - t[0], t[2] - t[0]));
+  s.size = longest_edge(t);
+  s.face = face;
+  return s;
+}
+
+double ipow(double x, int n) {
+  double r = 1;
+  for (int i = 0; i < n; ++i) r *= x;
+  return r;
+}
+
+Vec3 te_basis(const Vec3& k, const Vec3& n) {
+  const Vec3 s = cross(k, n);
+  const double l = norm(s);
+  return l > 1e-12 ? (1.0 / l) * s : any_perpendicular(k);
+}
+
+}  // namespace
+
+std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::vector<unsigned char>& wanted,
+                                           double tile_m) {
+  std::vector<SurfaceTile> tiles;
+  std::vector<std::array<Vec3, 3>> tris, stack;
+  for (std::uint32_t f = 0; f < wanted.size(); ++f) {
+    if (!wanted[f]) continue;
+    tris.clear();
+    scene.face_triangles(FaceRef{0, f}, tris);
+    for (const auto& t : tris) {
+      stack.assign(1, t);
+      while (!stack.empty()) {
+        const auto cur = stack.back();
+        stack.pop_back();
+        if (longest_edge(cur) <= tile_m) {
+          const SurfaceTile s = make_tile(cur, f);
+          if (s.area > 0) tiles.push_back(s);
+          continue;
+        }
+        const auto halves = bisect(cur);
+        stack.push_back(halves[1]);
+        stack.push_back(halves[0]);
+      }
+    }
+  }
+  return tiles;
+}
+
+// A tile as node `node` sees it: the incident geometry and the field a
+// smooth surface would reflect there (antenna pattern times the slab's
+// reflection coefficients, no spreading), all the pair integration needs
+// from this end.
+struct DiffuseTiles::View {
+  std::uint32_t tile = 0;
+  std::uint32_t object = 0;
+  std::uint16_t material = 0;
+  double r = 0;               // node -> tile centre
+  Vec3 k{0, 0, 0};            // unit, node -> tile (incident direction)
+  Vec3 field{0, 0, 0};        // the node's antenna field along k (it transmits and receives with it)
+  Vec3 n_front{0, 0, 1};      // face normal on the node's side
+  Vec3 spec{0, 0, 0};         // specular direction of k
+  CVec3 e_ref{};              // smoothly reflected field
+  double e_ref2 = 0;          // |e_ref|^2
+  double cos_i = 0;
+  double inv_norm = 0;        // lobe normalisation at this incidence
+  const Scattering* sc = nullptr;
+  const Node* node = nullptr;
+};
+
+// One node's visibility cut through the tile tree.
+struct DiffuseTiles::Sight {
+  // Per tree node: kBelow, kHidden, kRefine, or the index of its view (seen).
+  std::vector<std::int32_t> slot;
+  std::vector<View> views;
+};
+
+namespace {
+enum : std::int32_t { kBelow = -1, kHidden = -2, kRefine = -3 };
+constexpr double kRootTileM = 32;
+}  // namespace
+
+DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, const std::vector<Node>& nodes,
+                           const std::vector<unsigned char>& wanted, const TracerConfig& cfg, double range)
+    : scene_(scene), em_(em), nodes_(nodes), ratio_(cfg.diffuse_tile_ratio) {
+  const auto nf = static_cast<std::uint32_t>(scene.face_count(0));
+  std::vector<unsigned char> rough(nf, 0);
+  for (std::uint32_t f = 0; f < nf; ++f) rough[f] = em.material(scene.material(FaceRef{0, f})).scattering.s > 0;
+  // Roots, then each root's subtree down to the leaves.
+  const double leaf_m = cfg.diffuse_tile_m;
+  for (const SurfaceTile& r : tile_static_faces(scene, rough, std::max(leaf_m, kRootTileM))) {
+    roots_.push_back(static_cast<std::uint32_t>(tree_.size()));
+    tree_.push_back(r);
+    child_.push_back(-1);
+  }
+  for (std::size_t i = 0; i < tree_.size(); ++i) {  // grows while it runs: breadth first
+    if (tree_[i].size <= leaf_m) {
+      ++leaves_;
+      continue;
+    }
+    const auto halves = bisect(tree_[i].v);
+    child_[i] = static_cast<std::int32_t>(tree_.size());
+    for (const auto& h : halves) {
+      tree_.push_back(make_tile(h, tree_[i].face));
+      child_.push_back(-1);
+    }
+  }
+  sight_.resize(nodes.size());
+  std::vector<std::uint64_t> rays(nodes.size(), 0);
+  tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t i) {
+    if (!wanted[i]) return;
+    Sight& sight = sight_[i];
+    sight.slot.assign(tree_.size(), kBelow);
+    const Vec3 x = nodes[i].position;
+    const double t0 = scene.slack(x, 0) * 0.1;
+    std::vector<std::uint32_t> stack(roots_.rbegin(), roots_.rend());
+    while (!stack.empty()) {
+      const std::uint32_t t = stack.back();
+      stack.pop_back();
+      const SurfaceTile& tile = tree_[t];
+      const double r = norm(tile.centre - x);
+      if (r - tile.size > range) {
+        sight.slot[t] = kHidden;
+        continue;
+      }
+      if (child_[t] >= 0 && tile.size > ratio_ * r) {
+        sight.slot[t] = kRefine;
+        stack.push_back(static_cast<std::uint32_t>(child_[t] + 1));
+        stack.push_back(static_cast<std::uint32_t>(child_[t]));
+        continue;
+      }
+      View v;
+      sight.slot[t] = kHidden;
+      if (!view(static_cast<std::uint32_t>(i), tile.centre, tile.face, v)) continue;
+      // Anything between the antenna and a point of the tile shadows it.
+      auto clear = [&](const Vec3& p) {
+        const Vec3 w = p - x;
+        const double r = norm(w);
+        const double tfar = r - std::max(scene.slack(p, 0), 1e-6 * r);
+        Hit hit;
+        ++rays[i];
+        return !(tfar > t0 && scene.closest_hit(x, (1.0 / r) * w, t0, tfar, hit));
+      };
+      const bool seen = clear(tile.centre);
+      if (child_[t] >= 0) {
+        // Not a leaf: where a shadow edge crosses the tile (its corners,
+        // pulled a tenth towards the centre, disagree with the centre), the
+        // tile is refined down to where they agree, or to the leaves.
+        bool agree = true;
+        for (int q = 0; q < 3 && agree; ++q) agree = clear(0.9 * tile.v[q] + 0.1 * tile.centre) == seen;
+        if (!agree) {
+          sight.slot[t] = kRefine;
+          stack.push_back(static_cast<std::uint32_t>(child_[t] + 1));
+          stack.push_back(static_cast<std::uint32_t>(child_[t]));
+          continue;
+        }
+      }
+      if (!seen) continue;
+      sight.slot[t] = static_cast<std::int32_t>(sight.views.size());
+      v.tile = t;
+      sight.views.push_back(v);
+    }
+  });
+  for (auto r : rays) rays_ += r;
+}
+
+DiffuseTiles::~DiffuseTiles() = default;
+
+std::uint64_t DiffuseTiles::views() const {
+  std::uint64_t n = 0;
+  for (const auto& s : sight_) n += s.views.size();
+  return n;
+}
+
+bool DiffuseTiles::view(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& v) const {
+  const Node& nd = nodes_[node];
+  const FaceRef ref{0, face};
+  const Plane pl = scene_.plane(ref);
+  const double h = dot(pl.normal, nd.position) - pl.offset;
+  if (h == 0) return false;  // in the plane: grazing, nothing scatters
+  const Vec3 w = centre - nd.position;
+  v.r = norm(w);
+  if (!(v.r > 1e-6)) return false;
+  v.k = (1.0 / v.r) * w;
+  v.n_front = h > 0 ? pl.normal : -pl.normal;
+  v.cos_i = -dot(v.k, v.n_front);
+  if (!(v.cos_i > 0)) return false;
+  v.material = scene_.material(ref);
+  v.object = scene_.object(ref);
+  v.sc = &em_.material(v.material).scattering;
+  v.node = &nd;
+  v.field = antenna_field(em_.radio().antenna, v.k, nd.forward);
+  v.spec = v.k + (2 * v.cos_i) * v.n_front;
+  const auto c = em_.coefficients(v.material, v.cos_i);
+  const Vec3 es = te_basis(v.k, v.n_front);
+  const Vec3 ep_in = cross(es, v.k), ep_out = cross(es, v.spec);
+  const cdouble a_te = c.r.te * dot(v.field, es), a_tm = c.r.tm * dot(v.field, ep_in);
+  for (int q = 0; q < 3; ++q) v.e_ref[q] = a_te * es[q] + a_tm * ep_out[q];
+  v.e_ref2 = std::norm(v.e_ref[0]) + std::norm(v.e_ref[1]) + std::norm(v.e_ref[2]);
+  const Scattering& sc = *v.sc;
+  if (sc.lobe == ScatteringLobe::lambertian) {
+    v.inv_norm = 1 / kPi;
+  } else {
+    const double theta_i = std::acos(std::clamp(v.cos_i, 0.0, 1.0));
+    const double n = sc.lobe == ScatteringLobe::directive
+                         ? lobe_integral(sc.alpha_r, theta_i)
+                         : sc.lambda_r * lobe_integral(sc.alpha_r, theta_i) +
+                               (1 - sc.lambda_r) * lobe_integral(sc.alpha_i, theta_i);
+    v.inv_norm = 1 / n;
+  }
+  return true;
+}
+
+namespace {
+
+// One way of the bistatic term: incident from `a`'s side, received by `b`
+// (its views give the scattered direction and the receive pattern).
+template <class V>
+double one_way(const V& a, const V& b, double area, double lambda) {
+  const Vec3 ks = -b.k;  // tile -> receiver
+  const double cos_s = dot(ks, a.n_front);
+  if (!(cos_s > 0)) return 0;
+  const Scattering& sc = *a.sc;
+  double f;
+  if (sc.lobe == ScatteringLobe::lambertian) {
+    f = cos_s * a.inv_norm;
+  } else {
+    const double lobe_r = ipow((1 + std::clamp(dot(ks, a.spec), -1.0, 1.0)) / 2, sc.alpha_r);
+    if (sc.lobe == ScatteringLobe::directive) {
+      f = lobe_r * a.inv_norm;
+    } else {
+      const double lobe_i = ipow((1 + std::clamp(-dot(ks, a.k), -1.0, 1.0)) / 2, sc.alpha_i);
+      f = (sc.lambda_r * lobe_r + (1 - sc.lambda_r) * lobe_i) * a.inv_norm;
+    }
+  }
+  if (!(f > 0)) return 0;
+  // The reflected field's part transverse to ks, co- and cross-polarised
+  // against the receive pattern.
+  const cdouble along = a.e_ref[0] * ks[0] + a.e_ref[1] * ks[1] + a.e_ref[2] * ks[2];
+  const std::array<cdouble, 3> et{a.e_ref[0] - along * ks[0], a.e_ref[1] - along * ks[1], a.e_ref[2] - along * ks[2]};
+  const double et2 = std::norm(et[0]) + std::norm(et[1]) + std::norm(et[2]);
+  if (!(et2 > 1e-30)) return 0;
+  const Vec3& fr = b.field;
+  const std::array<cdouble, 3> ex{ks[1] * et[2] - ks[2] * et[1], ks[2] * et[0] - ks[0] * et[2],
+                                  ks[0] * et[1] - ks[1] * et[0]};
+  const double co = std::norm(et[0] * fr[0] + et[1] * fr[1] + et[2] * fr[2]);
+  const double cross_pol = std::norm(ex[0] * fr[0] + ex[1] * fr[1] + ex[2] * fr[2]);
+  const double g = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * a.e_ref2 / et2;
+  return sc.s * sc.s * f * g * lambda * lambda * area * a.cos_i /
+         (16 * kPi * kPi * a.r * a.r * b.r * b.r);
+}
+
+struct Bin {
+  std::uint32_t object = 0;
+  std::int64_t bin = 0;
+  double power = 0, tau = 0, doppler = 0;
+  Vec3 point{0, 0, 0}, departure{0, 0, 0}, arrival{0, 0, 0};
+  std::uint16_t material = 0;
+};
+
+}  // namespace
+
+double DiffuseTiles::term(std::uint32_t a, std::uint32_t b, const SurfaceTile& tile) const {
+  View va, vb;
+  if (!view(a, tile.centre, tile.face, va) || !view(b, tile.centre, tile.face, vb)) return 0;
+  if (dot(va.n_front, vb.n_front) <= 0) return 0;
+  return one_way(va, vb, tile.area, em_.wavelength());
+}
+
+void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const {
+  const double lambda = em_.wavelength();
+  std::vector<Bin> bins;
+  std::size_t last = 0;
+  auto add = [&](const View& x, const View& y, double area, const Vec3& point) {
+    if (dot(x.n_front, y.n_front) <= 0) return;  // the ends on opposite sides of the face
+    // Both ways, averaged: the sum is the same whichever end is `a`.
+    const double p = 0.5 * (one_way(x, y, area, lambda) + one_way(y, x, area, lambda));
+    if (!(p > 0)) return;
+    const double tau = (x.r + y.r) / kSpeedOfLight;
+    const auto bin = static_cast<std::int64_t>(std::floor(tau / bin_s));
+    if (last >= bins.size() || bins[last].object != x.object || bins[last].bin != bin) {
+      last = bins.size();
+      for (std::size_t q = 0; q < bins.size(); ++q)
+        if (bins[q].object == x.object && bins[q].bin == bin) last = q;
+      if (last == bins.size()) {
+        bins.push_back(Bin{});
+        bins.back().object = x.object;
+        bins.back().bin = bin;
+        bins.back().material = x.material;
+      }
+    }
+    Bin& B = bins[last];
+    B.power += p;
+    B.tau += p * tau;
+    B.point = B.point + p * point;
+    // x is a's view, y b's: departure from a, arrival at b pointing back
+    // towards the tile.
+    B.departure = B.departure + p * x.k;
+    B.arrival = B.arrival + p * y.k;
+    const double dl = -(dot(x.k, x.node->velocity) + dot(y.k, y.node->velocity));
+    B.doppler += p * (-dl / lambda);
+  };
+  const Sight& sa = sight_[a];
+  const Sight& sb = sight_[b];
+  // Depth first through the tree. A node's visibility is decided at its
+  // cut; below it, tiles inherit it (`seen_a`, `seen_b`).
+  struct Item {
+    std::uint32_t t;
+    bool seen_a, seen_b;
+  };
+  std::vector<Item> stack;
+  for (auto it = roots_.rbegin(); it != roots_.rend(); ++it) stack.push_back({*it, false, false});
+  std::vector<std::pair<std::array<Vec3, 3>, int>> finer;
+  while (!stack.empty()) {
+    const Item item = stack.back();
+    stack.pop_back();
+    const std::uint32_t t = item.t;
+    const std::int32_t slot_a = item.seen_a ? kBelow : sa.slot[t];
+    const std::int32_t slot_b = item.seen_b ? kBelow : sb.slot[t];
+    const bool seen_a = item.seen_a || slot_a >= 0, seen_b = item.seen_b || slot_b >= 0;
+    if (!seen_a && slot_a != kRefine) continue;  // hidden (or never looked at)
+    if (!seen_b && slot_b != kRefine) continue;
+    if (!seen_a || !seen_b) {
+      const auto c = static_cast<std::uint32_t>(child_[t]);
+      stack.push_back({c + 1, seen_a, seen_b});
+      stack.push_back({c, seen_a, seen_b});
+      continue;
+    }
+    // Both ends see this tile: integrate it, finer where an end is close.
+    const SurfaceTile& tile = tree_[t];
+    View ca, cb;
+    const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
+    const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
+    if (!va) {
+      if (!view(a, tile.centre, tile.face, ca)) continue;
+      va = &ca;
+    }
+    if (!vb) {
+      if (!view(b, tile.centre, tile.face, cb)) continue;
+      vb = &cb;
+    }
+    if (tile.size <= ratio_ * std::min(va->r, vb->r)) {
+      add(*va, *vb, tile.area, tile.centre);
+      continue;
+    }
+    if (child_[t] >= 0) {
+      const auto c = static_cast<std::uint32_t>(child_[t]);
+      stack.push_back({c + 1, true, true});
+      stack.push_back({c, true, true});
+      continue;
+    }
+    // Below the leaves: bisected for this pair only.
+    finer.assign(1, {tile.v, 0});
+    while (!finer.empty()) {
+      const auto [tri, depth] = finer.back();
+      finer.pop_back();
+      const SurfaceTile child = make_tile(tri, tile.face);
+      if (!view(a, child.centre, tile.face, ca) || !view(b, child.centre, tile.face, cb)) continue;
+      if (depth < 12 && child.size > ratio_ * std::min(ca.r, cb.r)) {
+        const auto halves = bisect(tri);
+        finer.push_back({halves[1], depth + 1});
+        finer.push_back({halves[0], depth + 1});
+        continue;
+      }
+      add(ca, cb, child.area, child.centre);
+    }
+  }
+  for (const Bin& B : bins) {
+    if (!(B.power > 0)) continue;
+    Path path;
+    const double w = 1.0 / B.power;
+    path.tau_s = B.tau * w;
+    const double phase = -2 * kPi * std::fmod(path.tau_s * kSpeedOfLight / lambda, 1.0);
+    path.a = std::polar(std::sqrt(B.power), phase);
+    const Vec3 dep = normalize(B.departure), arr = normalize(B.arrival);
+    path.theta_t = zenith(dep);
+    path.phi_t = azimuth(dep);
+    path.theta_r = zenith(arr);
+    path.phi_r = azimuth(arr);
+    path.doppler_hz = B.doppler * w;
+    path.interactions.push_back(Interaction{InteractionType::diffuse, B.object, B.material, w * B.point});
+    out.push_back(std::move(path));
+  }
+}
+
+}  // namespace raysweep::tracer

@@ -1,0 +1,94 @@
+// Diffuse scattering by surface tiles (effective roughness, Degli-Esposti
+// 2007), integrated deterministically over the static surfaces that scatter.
+//
+// Every static face whose material has S > 0 is cut into a tree of
+// triangles by longest-edge bisection (long thin wall triangles give compact
+// tiles, and every level partitions the face's area exactly), down to
+// leaves whose longest edge is at most `diffuse_tile_m`. Per snapshot, each
+// antenna decides the visibility of the tiles no larger than
+// `diffuse_tile_ratio` times their distance (coarse far away, fine nearby:
+// one ray to each such tile's centre; vehicles and buildings block), and a
+// pair integrates the bistatic radar-equation term over the tiles both ends
+// see:
+//
+//   dP = S^2 f(k_i, k_s) g_pol lambda^2 A cos(theta_i) / (16 pi^2 r_i^2 r_s^2)
+//
+// with the midpoint rule on tiles no larger than `diffuse_tile_ratio` times
+// the nearer end's distance (below the leaves, tiles are bisected on the
+// fly; children inherit their parent's visibility), so the rule's error,
+// O((size / distance)^2) per tile, stays bounded everywhere. The
+// term is evaluated from both ends and averaged, so a_ij = a_ji bitwise.
+// Energy: specular reflections on these faces keep sqrt(1 - S^2) of their
+// field (Electromagnetics::specular_keep), the R^2 + S^2 = 1 partition.
+//
+// Only the first interaction scatters (source -> tile -> receiver): diffuse
+// scattering after earlier reflections, and through slabs, is not modelled
+// (docs/tracer.md measures what that leaves out against the ray-based
+// estimator, `diffuse_integration = "rays"`).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "tracer/solver.hpp"
+
+namespace raysweep::tracer {
+
+struct SurfaceTile {
+  std::array<Vec3, 3> v;  // world triangle
+  Vec3 centre{0, 0, 0};
+  double area = 0;
+  double size = 0;  // longest edge
+  std::uint32_t face = 0;  // static face
+};
+
+// Static faces for which `wanted[face]` holds, cut into tiles of longest
+// edge <= tile_m; ordered by face.
+std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::vector<unsigned char>& wanted,
+                                           double tile_m);
+
+class DiffuseTiles {
+ public:
+  // The tile tree of the scattering static faces, and each wanted node's
+  // view of it (visibility rays: counted in rays()). `range`: tiles farther
+  // from a node than this are not seen by it.
+  DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, const std::vector<Node>& nodes,
+               const std::vector<unsigned char>& wanted, const TracerConfig& cfg, double range);
+  ~DiffuseTiles();
+
+  // Diffuse paths of pair (a, b), a < b: one per scattering object and delay
+  // bin of `bin_s` (power-weighted delay, directions, point and Doppler;
+  // phase of the bin delay's carrier phase), appended to `out`.
+  void pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const;
+
+  std::size_t tile_count() const { return leaves_; }  // finest tiles (longest edge <= diffuse_tile_m)
+  std::uint64_t rays() const { return rays_; }
+  std::uint64_t views() const;  // (node, tile) visibility decisions
+
+  // The one-way term of a tile seen from `a` (incident) towards `b`, power
+  // only, visibility not tested: for tests against closed forms.
+  double term(std::uint32_t a, std::uint32_t b, const SurfaceTile& tile) const;
+
+  struct View;   // a tile as one node sees it
+  struct Sight;  // one node's visibility cut through the tile tree
+
+ private:
+  bool view(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& out) const;
+
+  const TraceScene& scene_;
+  const Electromagnetics& em_;
+  const std::vector<Node>& nodes_;
+  double ratio_ = 0.25;
+  // Tile tree: roots of longest edge <= 32 m (or the leaf size), halved by
+  // longest-edge bisection down to leaves of <= diffuse_tile_m; the two
+  // children of tree_[i] are tree_[child_[i]] and tree_[child_[i] + 1].
+  std::vector<SurfaceTile> tree_;
+  std::vector<std::int32_t> child_;
+  std::vector<std::uint32_t> roots_;
+  std::size_t leaves_ = 0;
+  std::vector<Sight> sight_;  // per node
+  std::uint64_t rays_ = 0;
+};
+
+}  // namespace raysweep::tracer
