@@ -59,6 +59,7 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
                      {"los_class", tracer::los_class_name(p.los_class)},
                      {"los_class_fresnel", tracer::los_class_name(p.fresnel_class)},
                      {"fresnel_clearance", p.fresnel_clearance},
+                     {"vehicle_loss_db", p.vehicle_loss_db},
                      {"blockers", blockers},
                      {"path_gain_db", db_or_null(p.stats.gain_coherent)},
                      {"path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent)},

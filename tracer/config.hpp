@@ -76,6 +76,10 @@ struct TracerConfig {
   // First-order UTD edge diffraction on the static scene's wedges
   // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
   bool diffraction = true;
+  // Vehicles in the first Fresnel zone of the direct path attenuate it by
+  // ITU-R P.526's knife-edge loss (Deygout for several: tracer/fresnel.hpp);
+  // a direct ray only vehicles block survives, attenuated.
+  bool vehicle_diffraction = true;
   // A pair's paths weaker than its strongest by more than this (dB) are
   // dropped and counted in PairResult::dropped_threshold. <= 0: keep all.
   double path_threshold_db = 60;

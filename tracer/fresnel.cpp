@@ -84,15 +84,22 @@ double exit_along(P2 a, P2 b, P2 c, P2 dir) {
   return lo <= hi ? hi : -1;
 }
 
+// An obstacle as the line sees it: its clearance, and the point the line
+// must pass to clear it (the obstacle's knife edge for this line).
+struct Clearance {
+  double clearance = 1e300;
+  Vec3 edge{0, 0, 0};
+};
+
 // Clearance of one obstacle (its triangles) from the line a + t u, t in
 // (0, d), over the first Fresnel radius there.
-double obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& near,
-                          const Vec3& a, const Vec3& u, const Vec3& e1, const Vec3& e2, double d, double lambda) {
+Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& near,
+                             const Vec3& a, const Vec3& u, const Vec3& e1, const Vec3& e2, double d, double lambda) {
   auto r1 = [&](double t) {
     t = std::clamp(t, 1e-3 * d, d - 1e-3 * d);
     return std::sqrt(lambda * t * (d - t) / d);
   };
-  double best = 1e300;
+  Clearance best;
   double blocked_t = -1;
   // Projection onto the plane across the line; false: beyond an end.
   auto project = [&](const std::array<Vec3, 3>& tri, std::array<P2, 3>& q, std::array<double, 3>& t) {
@@ -117,7 +124,12 @@ double obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const st
       if (tc > 0 && tc < d) blocked_t = tc;
       continue;
     }
-    best = std::min(best, h / r1(tc));
+    const double c = h / r1(tc);
+    if (c < best.clearance) {
+      best.clearance = c;
+      const double qx = w[0] * q[0].x + w[1] * q[1].x + w[2] * q[2].x, qy = w[0] * q[0].y + w[1] * q[1].y + w[2] * q[2].y;
+      best.edge = a + tc * u + qx * e1 + qy * e2;
+    }
   }
   if (blocked_t < 0) return best;
   // Crossed: the shortest shift that clears the outline (every triangle),
@@ -129,14 +141,32 @@ double obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const st
     if (project(tri, q, t)) outline.push_back(q);
   }
   double depth = 1e300;
+  P2 best_dir{0, 1};
   for (int k = 0; k < 32; ++k) {
     const double phi = 2 * kPi * k / 32;
     const P2 dir{std::cos(phi), std::sin(phi)};
     double out = 0;
     for (const auto& q : outline) out = std::max(out, exit_along(q[0], q[1], q[2], dir));
-    depth = std::min(depth, out);
+    if (out < depth) {
+      depth = out;
+      best_dir = dir;
+    }
   }
-  return -depth / r1(blocked_t);
+  best.clearance = -depth / r1(blocked_t);
+  best.edge = a + blocked_t * u + (depth * best_dir.x) * e1 + (depth * best_dir.y) * e2;
+  return best;
+}
+
+// The reach of the first zone around the line a + t u, t in [0, d], near
+// a sphere: the zone radius at the sphere's axial point nearest mid-path
+// (r1 is largest there), or -1 when the sphere cannot come within it.
+double zone_reach(const TraceScene::Sphere& s, const Vec3& a, const Vec3& u, double d, double lambda) {
+  const Vec3 w = s.centre - a;
+  const double t = dot(w, u);
+  if (t < -s.radius || t > d + s.radius) return -1.0;
+  const double t_mid = std::clamp(0.5 * d, std::clamp(t - s.radius, 0.0, d), std::clamp(t + s.radius, 0.0, d));
+  const double reach = std::sqrt(lambda * t_mid * (d - t_mid) / d);
+  return dot(w, w) - t * t <= (s.radius + reach) * (s.radius + reach) ? reach : -1.0;
 }
 
 }  // namespace
@@ -191,39 +221,84 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
   if (!(d > 0)) return f;
   const Vec3 u = (1.0 / d) * (b - a);
   const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
-  // Whether a sphere can come within the first zone (clearance < 1)
-  // between the ends: r1 is largest at mid-path, so take it at the sphere's
-  // axial point nearest there.
-  auto reach_of = [&](const TraceScene::Sphere& s) {
-    const Vec3 w = s.centre - a;
-    const double t = dot(w, u);
-    if (t < -s.radius || t > d + s.radius) return -1.0;
-    const double t_mid = std::clamp(0.5 * d, std::clamp(t - s.radius, 0.0, d), std::clamp(t + s.radius, 0.0, d));
-    const double reach = std::sqrt(lambda * t_mid * (d - t_mid) / d);
-    return dot(w, w) - t * t <= (s.radius + reach) * (s.radius + reach) ? reach : -1.0;
-  };
   std::vector<std::uint32_t> near;
   for (std::size_t k = 0; k < obstacles_.size(); ++k) {
     const Obstacle& o = obstacles_[k];
     if (o.vehicle && (static_cast<int>(k) == skip_a || static_cast<int>(k) == skip_b)) continue;
-    const double reach = reach_of(o.sphere);  // bounds r1 over every face of the obstacle
-    if (reach < 0) continue;
-    near.clear();
-    for (std::size_t face = 0; face + 1 < o.face_begin.size(); ++face) {
-      const auto& fs = o.face_spheres[face];
-      const Vec3 w = fs.centre - a;
-      const double t = dot(w, u), r = fs.radius + reach;
-      if (t < -fs.radius || t > d + fs.radius || dot(w, w) - t * t > r * r) continue;
-      for (std::uint32_t q = o.face_begin[face]; q < o.face_begin[face + 1]; ++q) near.push_back(q);
-    }
-    if (near.empty()) continue;
+    if (!near_faces(o, a, u, d, lambda, near)) continue;
     double& worst = o.vehicle ? f.vehicle_clearance : f.static_clearance;
-    worst = std::min(worst, obstacle_clearance(o.triangles, near, a, u, e1, e2, d, lambda));
+    worst = std::min(worst, obstacle_clearance(o.triangles, near, a, u, e1, e2, d, lambda).clearance);
   }
   f.vehicle_clearance = std::min(f.vehicle_clearance, 1.0);
   f.static_clearance = std::min(f.static_clearance, 1.0);
   f.clearance = std::min(f.vehicle_clearance, f.static_clearance);
   return f;
+}
+
+bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
+                                  std::vector<std::uint32_t>& near) const {
+  near.clear();
+  const double reach = zone_reach(o.sphere, a, u, d, lambda);  // bounds r1 over every face of the obstacle
+  if (reach < 0) return false;
+  for (std::size_t face = 0; face + 1 < o.face_begin.size(); ++face) {
+    const auto& fs = o.face_spheres[face];
+    const Vec3 w = fs.centre - a;
+    const double t = dot(w, u), r = fs.radius + reach;
+    if (t < -fs.radius || t > d + fs.radius || dot(w, w) - t * t > r * r) continue;
+    for (std::uint32_t q = o.face_begin[face]; q < o.face_begin[face + 1]; ++q) near.push_back(q);
+  }
+  return !near.empty();
+}
+
+double knife_edge_loss_db(double v) {
+  if (v <= -0.78) return 0;
+  const double x = v - 0.1;
+  return 6.9 + 20 * std::log10(std::sqrt(x * x + 1) + x);
+}
+
+KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a,
+                                                 int skip_b) const {
+  struct Edge {
+    double v = -1e300;
+    int k = -1;
+    Vec3 point{0, 0, 0};
+  };
+  std::vector<std::uint32_t> near;
+  // The vehicle with the largest v over the line p -> q (`exclude` aside).
+  auto main_edge = [&](const Vec3& p, const Vec3& q, int exclude) {
+    Edge best;
+    const double d = norm(q - p);
+    if (!(d > 0)) return best;
+    const Vec3 u = (1.0 / d) * (q - p);
+    const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
+    for (std::size_t k = 0; k < obstacles_.size(); ++k) {
+      const Obstacle& o = obstacles_[k];
+      const int ki = static_cast<int>(k);
+      if (!o.vehicle || ki == skip_a || ki == skip_b || ki == exclude) continue;
+      if (!near_faces(o, p, u, d, lambda, near)) continue;
+      const Clearance c = obstacle_clearance(o.triangles, near, p, u, e1, e2, d, lambda);
+      const double v = -std::sqrt(2.0) * c.clearance;
+      if (v > best.v) best = Edge{v, ki, c.edge};
+    }
+    return best;
+  };
+  KnifeEdges out;
+  const Edge m = main_edge(a, b, -1);
+  if (m.k < 0 || m.v <= -0.78) return out;
+  out.v_main = m.v;
+  out.main_vehicle = m.k;
+  out.loss_db = knife_edge_loss_db(m.v);
+  out.edges = 1;
+  // Deygout: the strongest edge, then the strongest on each side of it,
+  // each over the path from its end to the main edge.
+  for (const Edge& s : {main_edge(a, m.point, m.k), main_edge(m.point, b, m.k)}) {
+    const double l = s.k >= 0 ? knife_edge_loss_db(s.v) : 0.0;
+    if (l > 0) {
+      out.loss_db += l;
+      ++out.edges;
+    }
+  }
+  return out;
 }
 
 FresnelObstruction fresnel_obstruction(const TraceScene& scene, const Vec3& a, const Vec3& b, double lambda, int skip_a,

@@ -20,6 +20,20 @@
 
 namespace raysweep::tracer {
 
+// The vehicles' knife-edge loss on the direct path (P.526 single knife edge
+// J(v) per edge; Deygout's construction for several: the edge with the
+// largest v over the whole path, then the largest on each side of it over
+// the sub-path from that end to the main edge; losses in dB add).
+struct KnifeEdges {
+  double loss_db = 0;   // 0: no vehicle has v > -0.78 (clearance above 0.55 r1)
+  int edges = 0;        // edges with a loss (0..3)
+  double v_main = 0;    // the main edge's v = -sqrt(2) h / r1
+  int main_vehicle = -1;
+};
+
+// ITU-R P.526's single knife-edge loss J(v) in dB (0 for v <= -0.78).
+double knife_edge_loss_db(double v);
+
 // An obstacle obstructs the zone when its clearance is below this fraction
 // of the first Fresnel radius (the usual 0.6 F1 criterion).
 constexpr double kFresnelZoneFraction = 0.6;
@@ -40,6 +54,11 @@ class FresnelObstacles {
   // The obstruction of the line a -> b; `skip_a` / `skip_b`: the antennas'
   // own vehicles (-1: none), which carry them rather than obstruct.
   FresnelObstruction between(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1, int skip_b = -1) const;
+  // The multiple knife-edge loss of the vehicles (static objects aside) on
+  // the line a -> b; each vehicle is one knife edge, at the point its
+  // outline must be cleared (tracer/fresnel.cpp).
+  KnifeEdges vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1,
+                                 int skip_b = -1) const;
 
  private:
   struct Obstacle {
@@ -49,6 +68,10 @@ class FresnelObstacles {
     std::vector<std::uint32_t> face_begin;
     bool vehicle = false;
   };
+  // Triangles of o's faces whose spheres come within the first zone of the
+  // line a + t u, t in [0, d]; false when none.
+  bool near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
+                  std::vector<std::uint32_t>& near) const;
   std::vector<Obstacle> obstacles_;  // vehicles first (index = vehicle), then static objects
 };
 

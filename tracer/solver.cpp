@@ -146,9 +146,13 @@ LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std
   return blockers.empty() ? LosClass::LOS : LosClass::NLOSV;
 }
 
-std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
-                                 const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
-                                 std::uint64_t* rays) {
+namespace {
+
+// compute_path; `through_vehicles`: vehicle faces on the way are ignored
+// (the direct path that the knife-edge model attenuates instead).
+std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
+                               const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
+                               std::uint64_t* rays, bool through_vehicles) {
   if (over_cap) *over_cap = false;
   const std::size_t k = faces.size();
   // Image method: mirror the source in each plane, then walk back from the
@@ -208,7 +212,8 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
     // stop at the first opaque face, or once the slab cap is exceeded,
     // instead of listing every wall to the end of a long segment.
     const int remaining = config.refraction ? std::max(0, config.max_transmissions - transmissions) : 0;
-    if (!scene.all_hits(a, dir, t0, tfar, hits, static_cast<std::size_t>(remaining) + 3, skip)) {
+    const std::size_t first_hits = through_vehicles ? 4096 : static_cast<std::size_t>(remaining) + 3;
+    if (!scene.all_hits(a, dir, t0, tfar, hits, first_hits, skip)) {
       int before_end = 0;
       for (const auto& h : hits) before_end += h.t < len - end_tol;
       if (rays) *rays += hits.size() + 1;
@@ -227,6 +232,7 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
         break;
       }
       if (h.t >= len - end_tol) continue;  // at the end point, not on the way
+      if (through_vehicles && scene.is_vehicle(h.face)) continue;
       if (!config.refraction || em.opaque(scene.material(h.face))) return std::nullopt;
       events.push_back(Event{false, h.face, a + h.t * dir, dir});
       ++transmissions;
@@ -286,6 +292,14 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
   }
   path.doppler_hz = -dl_dt / lambda;
   return path;
+}
+
+}  // namespace
+
+std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
+                                 const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
+                                 std::uint64_t* rays) {
+  return exact_path(scene, em, config, from, to, faces, over_cap, rays, false);
 }
 
 namespace {
@@ -870,7 +884,30 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       else if (over)
         ++res.dropped_transmission_cap;
     };
-    if (cfg.los) add({});
+    if (cfg.los) {
+      add({});
+      // Vehicles in the first Fresnel zone: P.526 knife-edge loss on the
+      // direct path (tracer/fresnel.hpp). A direct ray that only vehicles
+      // block is traced through them and attenuated; when it also crosses
+      // their windows, the stronger of the two is kept.
+      if (cfg.vehicle_diffraction && res.los_class != LosClass::NLOS &&
+          zone.vehicle_clearance < 0.78 / std::sqrt(2.0)) {
+        const auto ke = obstacles.vehicle_knife_edges(nodes[i].position, nodes[j].position, lambda,
+                                                      nodes[i].vehicle, nodes[j].vehicle);
+        if (ke.loss_db > 0) {
+          res.vehicle_loss_db = ke.loss_db;
+          const double scale = std::pow(10.0, -ke.loss_db / 20);
+          const bool have = !res.paths.empty() && res.paths.front().interactions.empty();
+          if (res.los_class == LosClass::LOS && have) {
+            res.paths.front().a *= scale;
+          } else if (auto direct = exact_path(scene, em, cfg, nodes[i], nodes[j], {}, nullptr, &rays, true)) {
+            direct->a *= scale;
+            if (!have) res.paths.insert(res.paths.begin(), std::move(*direct));
+            else if (std::norm(direct->a) > std::norm(res.paths.front().a)) res.paths.front() = std::move(*direct);
+          }
+        }
+      }
+    }
     for (const auto& faces : candidates[p]) add(faces);
     res.candidates = static_cast<std::uint32_t>(candidates[p].size() + (cfg.los ? 1 : 0));
     lap(tm.exact);

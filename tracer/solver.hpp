@@ -44,6 +44,9 @@ struct PairResult {
   // h / r1 (negative: the line crosses it), capped at 1.
   LosClass fresnel_class = LosClass::LOS;
   double fresnel_clearance = 1;
+  // Knife-edge loss of the vehicles in the first Fresnel zone (dB), applied
+  // to the direct path (TracerConfig::vehicle_diffraction); 0 when none.
+  double vehicle_loss_db = 0;
   std::vector<Path> paths;              // sorted by delay
   PathStats stats;
   std::uint32_t candidates = 0;         // face sequences refined
