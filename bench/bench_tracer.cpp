@@ -287,8 +287,13 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
     snap = tracer::trace_snapshot(*scene, nodes, cfg, radio);
     benchmark::DoNotOptimize(snap.pairs.data());
   }
-  std::size_t los = 0, nlosv = 0, nlos = 0, no_path = 0;
+  std::size_t los = 0, nlosv = 0, nlos = 0, no_path = 0, knife = 0;
+  double knife_db = 0;
   for (const auto& p : snap.pairs) {
+    if (p.vehicle_loss_db > 0) {
+      ++knife;
+      knife_db += p.vehicle_loss_db;
+    }
     (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
     no_path += p.paths.empty();
   }
@@ -334,6 +339,9 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   state.counters["NLOSV"] = static_cast<double>(nlosv);
   state.counters["NLOS"] = static_cast<double>(nlos);
   state.counters["no_path_pairs"] = static_cast<double>(no_path);
+  // Pairs whose direct path vehicles attenuate (knife edges), mean loss.
+  state.counters["knife_pairs"] = static_cast<double>(knife);
+  state.counters["knife_loss_db_mean"] = knife ? knife_db / static_cast<double>(knife) : 0.0;
   state.counters["passenger_only"] = used->passenger_only ? 1 : 0;
   state.counters["trucks"] = static_cast<double>(trucks);
   state.counters["buses"] = static_cast<double>(buses);
