@@ -38,6 +38,32 @@ bool cones_overlap(const Cone& a, const Cone& b) {
   return cos_angle >= cos_sum - 1e-12;
 }
 
+// Convex hull of a face's vertices in its plane (Andrew's monotone chain),
+// appended to `out` counter-clockwise about the normal.
+void convex_outline(const std::vector<std::array<Vec3, 3>>& tris, const Plane& pl, std::vector<Vec3>& out) {
+  const Vec3 e1 = any_perpendicular(pl.normal), e2 = cross(pl.normal, e1);
+  struct Q {
+    double x, y;
+    Vec3 p;
+  };
+  std::vector<Q> pts;
+  for (const auto& t : tris)
+    for (const auto& p : t) pts.push_back({dot(p, e1), dot(p, e2), p});
+  std::sort(pts.begin(), pts.end(), [](const Q& a, const Q& b) { return a.x < b.x || (a.x == b.x && a.y < b.y); });
+  auto turn = [](const Q& o, const Q& a, const Q& b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); };
+  std::vector<Q> hull;
+  for (int pass = 0; pass < 2; ++pass) {
+    const std::size_t start = hull.size();
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      const Q& q = pass == 0 ? pts[k] : pts[pts.size() - 1 - k];
+      while (hull.size() >= start + 2 && turn(hull[hull.size() - 2], hull.back(), q) <= 0) hull.pop_back();
+      hull.push_back(q);
+    }
+    hull.pop_back();
+  }
+  for (const auto& q : hull) out.push_back(q.p);
+}
+
 }  // namespace
 
 ImageFaces image_faces(const TraceScene& scene) {
@@ -61,6 +87,14 @@ ImageFaces image_faces(const TraceScene& scene) {
   for (std::size_t v = 0; v < scene.vehicles().size(); ++v) t.vehicle_spheres.push_back(scene.vehicle_sphere(v));
   for (std::uint32_t f = 0; f < t.static_count; ++f)
     if (scene.is_ground(f)) t.ground.push_back(f);
+  std::vector<std::array<Vec3, 3>> tris;
+  for (std::uint32_t f = 0; f < t.static_count; ++f) {
+    t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
+    tris.clear();
+    scene.face_triangles(t.refs[f], tris);
+    convex_outline(tris, t.planes[f], t.outline);
+  }
+  t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
   return t;
 }
 
@@ -285,6 +319,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
   // that point must cross f1.
   const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
+  std::vector<Vec3> pyramid;
   for (std::uint32_t f1 = 0; f1 < ns; ++f1) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
@@ -294,11 +329,40 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // through f1 (on the source's side of f1).
     Cone beam;
     const bool narrow = cone_to(i1, faces.spheres[f1], beam);
+    // Tighter: the pyramid from I1 through f1's convex outline, one plane
+    // per outline edge (inward normals), padded by the on-face tolerance.
+    pyramid.clear();
+    const std::uint32_t o0 = faces.outline_begin[f1], o1 = faces.outline_begin[f1 + 1];
+    if (o1 - o0 >= 3) {
+      Vec3 centre{0, 0, 0};
+      for (std::uint32_t k = o0; k < o1; ++k) centre = centre + faces.outline[k];
+      centre = (1.0 / (o1 - o0)) * centre;
+      for (std::uint32_t k = o0; k < o1; ++k) {
+        const Vec3 a = faces.outline[k] - i1, b = faces.outline[k + 1 < o1 ? k + 1 : o0] - i1;
+        Vec3 nrm = cross(a, b);
+        const double l = norm(nrm);
+        if (!(l > 1e-9 * norm(a) * norm(b))) continue;  // degenerate edge: no plane (conservative)
+        nrm = (1.0 / l) * nrm;
+        if (dot(nrm, centre - i1) < 0) nrm = -nrm;
+        pyramid.push_back(nrm);
+      }
+    }
+    auto outside_pyramid = [&](const TraceScene::Sphere& sp, double pad) {
+      const Vec3 w = sp.centre - i1;
+      for (const auto& nrm : pyramid)
+        if (dot(nrm, w) < -(sp.radius + pad)) return true;
+      return false;
+    };
     // f2 must reach the source's side of f1.
     for (std::uint32_t f2 : scene.static_faces_reaching(f1, ds > 0 ? 1 : -1)) {
       const auto& s2 = faces.spheres[f2];
       Cone c2;
       if (narrow && cone_to(i1, s2, c2) && !cones_overlap(beam, c2)) continue;
+      // A reflection point accepted within tol of f1's outline moves the
+      // continuation by up to tol times (distance / |ds|) at f2.
+      if (outside_pyramid(s2, 2 * faces.tol[f1] * (norm(s2.centre - i1) + s2.radius) / std::fabs(ds) +
+                                       faces.tol[f2] + 1e-6 * norm(s2.centre - i1)))
+        continue;
       const Plane& p2 = faces.planes[f2];
       const double di = dot(p2.normal, i1) - p2.offset;
       if (di == 0) continue;

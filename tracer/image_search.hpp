@@ -47,6 +47,10 @@ struct ImageFaces {
   std::vector<std::uint32_t> vehicle_begin;  // first face of vehicle v in refs (size vehicles + 1)
   std::vector<TraceScene::Sphere> vehicle_spheres;
   std::vector<std::uint32_t> ground;         // static faces that are ground (TraceScene::is_ground)
+  // Static faces' convex outlines (world vertices, in order around the
+  // face): the beam a face reflects is the pyramid from the image through it.
+  std::vector<std::uint32_t> outline_begin;  // static faces + 1
+  std::vector<Vec3> outline;
 };
 // True when the image search enumerates every sequence of this kind for a
 // pair whose ends ride vehicles `vehicle_a` and `vehicle_b` (-1: none).
