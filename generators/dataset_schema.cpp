@@ -213,6 +213,7 @@ class Validator {
       const std::string dtype = a.at("dtype");
       const std::string label = prefix + name;
       if (!has_attr(loc, name)) {
+        if (a.value("optional", false)) continue;
         if (name == "complete")
           problem(label + " missing: the file was not finished (its writer stopped before finish())");
         else
