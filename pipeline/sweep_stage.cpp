@@ -446,6 +446,8 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   }
   fs::rename(tmp, out);
   fs::remove_all(parts);
+  // A merge record next to the file describes an earlier, merged version of it.
+  if (!args.shard) fs::remove(out.string() + ".merge.json");
 
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   const auto links = totals["links"].get<std::uint64_t>();

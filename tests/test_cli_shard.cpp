@@ -106,6 +106,10 @@ TEST(CliShard, RunShardsMergeIntoTheSingleProcessDatasetByteForByte) {
         EXPECT_EQ(t[5 + k], ref_time[25 + k]);
       }
       EXPECT_EQ(run_raysweep("validate " + s1.string()).exit_code, 0);
+      auto info = run_raysweep("info --json " + s1.string());
+      ASSERT_EQ(info.exit_code, 0) << info.output;
+      EXPECT_EQ(json::parse(info.output)["shard"]["index"], 1) << info.output;
+      EXPECT_EQ(json::parse(info.output)["frames"], 10) << info.output;
     }
     auto r = run_raysweep(run_city("--merge"));
     ASSERT_EQ(r.exit_code, 0) << r.output;
