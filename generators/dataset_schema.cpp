@@ -213,6 +213,7 @@ class Validator {
       const std::string dtype = a.at("dtype");
       const std::string label = prefix + name;
       if (!has_attr(loc, name)) {
+        if (a.value("optional", false)) continue;
         if (name == "complete")
           problem(label + " missing: the file was not finished (its writer stopped before finish())");
         else
@@ -939,6 +940,11 @@ nlohmann::json channel_info(const InfoReader& r) {
     subcarriers = r.num_attr<std::uint64_t>(g.get(), "subcarriers", H5T_NATIVE_UINT64).value_or(0);
   }
   info["subcarriers"] = subcarriers;
+  // Shard files of a split sweep say which part of it they hold.
+  if (has_attr(r.fid.get(), "shard")) {
+    const std::string text = r.str_attr("shard", "");
+    if (nlohmann::json::accept(text)) info["shard"] = nlohmann::json::parse(text);
+  }
 
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(r.path, ec);
@@ -1000,6 +1006,12 @@ std::string format_channel_info(const nlohmann::json& info) {
   o << buf;
   o << "cfr           " << (info.value("has_cfr", false) ? std::to_string(num("subcarriers")) + " subcarriers" : "none")
     << "\n";
+  if (info.contains("shard") && info["shard"].is_object()) {
+    const auto& sh = info["shard"];
+    o << "shard         " << sh.value("index", 0) << " of " << sh.value("count", 0) << ": "
+      << sh.value("blocks", nlohmann::json::array()).size() << " of the sweep's " << sh.value("blocks_total", 0)
+      << " blocks (" << sh.value("frames_total", 0) << " frames); raysweep merge joins the shards\n";
+  }
   std::snprintf(buf, sizeof buf, "size          %s (%llu bytes), %.1f bytes per link\n",
                 human_bytes(static_cast<double>(num("file_bytes"))).c_str(),
                 static_cast<unsigned long long>(num("file_bytes")), real("bytes_per_link"));

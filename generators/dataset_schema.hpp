@@ -45,7 +45,8 @@ std::vector<std::string> validate_dataset(const std::string& path);
 // vehicles, rsus, links, paths, interactions, objects, los_counts {LOS, NLOSV, NLOS},
 // mean_paths_per_link, mean_paths_per_in_range_link (paths / links not flagged out of
 // range), cached_links, out_of_range_links, file, file_bytes, bytes_per_link (file bytes / links, a link being
-// one pair in one frame), has_cfr, subcarriers, carrier_hz, bandwidth_hz. SINR file:
+// one pair in one frame), has_cfr, subcarriers, carrier_hz, bandwidth_hz, and shard (the
+// parsed `shard` attribute, shard files only). SINR file:
 // format, schema_version, raysweep_version, git_hash, complete, channel_model,
 // los_from_ray, carrier_hz, sinr_threshold_db, sensitivity_dbm, gain_threshold_db,
 // time_start_s, time_end_s, nodes, transmissions, receptions, interferers (overlap

@@ -58,6 +58,7 @@ struct DatasetWriter::Impl {
                        header.provenance, header.seed);
     out.attr("", "carrier_hz", header.carrier_hz);
     out.attr("", "bandwidth_hz", header.bandwidth_hz);
+    if (!header.shard.empty()) out.attr("", "shard", header.shard);
 
     f_time = column("frames", "time_s", Dtype::f64);
     f_node_offset = column("frames", "node_offset", Dtype::u64);

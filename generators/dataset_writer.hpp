@@ -25,7 +25,7 @@
 
 namespace raysweep::generators {
 
-inline constexpr const char* kDatasetSchemaVersion = "1.2.0";
+inline constexpr const char* kDatasetSchemaVersion = "1.3.0";
 inline constexpr const char* kDatasetFormat = "raysweep-channels";
 
 struct DatasetHeader {
@@ -35,6 +35,9 @@ struct DatasetHeader {
   double carrier_hz = 0, bandwidth_hz = 0;
   std::uint32_t cfr_subcarriers = 0;  // 0: no /cfr group; else FrameRecord::cfr has links x K values
   double cfr_subcarrier_spacing_hz = 0;
+  // Shard files only (JSON text of the root attribute `shard`, see schemas/README.md);
+  // empty for whole datasets.
+  std::string shard;
 };
 
 class DatasetWriter {

@@ -6,10 +6,13 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <regex>
 #include <sstream>
 
 #include "generators/dataset_schema.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/merge_stage.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/scene_stage.hpp"
@@ -157,6 +160,43 @@ double read_traffic_record(const fs::path& traffic_dir, std::string& fcd, std::v
   return rec.value("end_s", -1.0);
 }
 
+// The shard files of <out>/shards for a merge: those of `count` shards (0:
+// the one count there is), each traced by `run --shard` from the inputs and
+// settings the city has now (its stamp).
+std::vector<std::string> shard_files(const fs::path& dir, std::uint32_t count, const fs::path& stamp_dir,
+                                     const std::string& sweep_key, const std::string& hint) {
+  static const std::regex name(R"(dataset\.(\d+)-of-(\d+)\.h5)");
+  std::map<std::uint32_t, std::vector<fs::path>> by_count;
+  if (fs::is_directory(dir))
+    for (const auto& e : fs::directory_iterator(dir)) {
+      std::smatch m;
+      const std::string f = e.path().filename().string();
+      if (std::regex_match(f, m, name)) by_count[static_cast<std::uint32_t>(std::stoul(m[2]))].push_back(e.path());
+    }
+  if (count == 0 && by_count.size() > 1) {
+    std::string counts;
+    for (const auto& [n, files] : by_count) counts += (counts.empty() ? "" : ", ") + std::to_string(n);
+    throw std::invalid_argument(dir.string() + ": shards of different sweeps split " + counts +
+                                " ways; remove the stale ones");
+  }
+  if (count == 0 && !by_count.empty()) count = by_count.begin()->first;
+  auto files = by_count[count];
+  if (files.empty())
+    throw std::invalid_argument(dir.string() + ": no shard files" +
+                                (count ? " of " + std::to_string(count) + " shards" : std::string()) + hint);
+  std::sort(files.begin(), files.end());
+  const Stamps stamps(stamp_dir);
+  std::vector<std::string> out;
+  for (const auto& f : files) {
+    const std::string stage = "sweep." + f.stem().string().substr(std::string("dataset.").size());
+    if (!stamps.up_to_date(stage, sweep_key, f))
+      throw std::invalid_argument(f.string() + ": traced from other inputs or settings than the city has now (or not "
+                                  "by `raysweep run --shard`); trace that shard again");
+    out.push_back(f.string());
+  }
+  return out;
+}
+
 }  // namespace
 
 CityOutputs city_outputs(const std::string& city_file, const std::string& out_dir) {
@@ -197,6 +237,22 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const SinrSettings sinr = load_sinr_settings(args.city);
   const int stages = sinr.present && sinr.enabled ? 5 : 4;
   if (city.fcd.empty()) load_traffic_args(args.city, city, "");
+  if (args.shard && args.merge) throw std::invalid_argument("--shard and --merge: trace every shard first, then merge once");
+  if (!args.until.empty() && (args.shard || args.merge))
+    throw std::invalid_argument("--until with --shard or --merge: build the shared stages first, then the shards");
+  if (!args.until.empty() && args.until != "scene" && args.until != "vehicles" && args.until != "traffic" &&
+      args.until != "sweep")
+    throw std::invalid_argument("--until " + args.until + ": expected scene, vehicles, traffic or sweep");
+  // Shards and the merge share the scene, the vehicle library and the traffic
+  // built once before them (`--until traffic`): several processes building
+  // them at once into one folder would race, and SUMO need not run N times.
+  const bool shared_only = args.shard || args.merge;
+  const std::string out_opt = args.out.empty() ? "" : " --out " + args.out;
+  auto not_built = [&](const std::string& stage, const fs::path& dir) {
+    return std::invalid_argument(dir.string() + ": the " + stage + " stage of city " + city.name +
+                                 " is not built or out of date; run `raysweep run " + args.city + out_opt +
+                                 " --until traffic` once before the shards and the merge");
+  };
   const Stamps stamps(out / ".stamps");
   const std::string version = std::string(kVersion) + "+" + kGitHash;
   json summary = {{"city", city.name}, {"out", out.string()}};
@@ -206,9 +262,10 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const fs::path scene_dir = out / "scene";
   const std::string scene_key = sha256_text(version + tables_text(root, {"scene"}) + file_hash(city.osm) +
                                             file_hash(city.net) + file_hash(city.mitsuba));
-  if (!args.force && stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
+  if ((!args.force || shared_only) && stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
     spdlog::info("[1/{}] scene: up to date ({})", stages, scene_dir.string());
   } else {
+    if (shared_only) throw not_built("scene", scene_dir);
     spdlog::info("[1/{}] scene: building {}", stages, scene_dir.string());
     SceneArgs s;
     if (city.mitsuba.empty()) {
@@ -222,13 +279,15 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     run_scene_stage(s, argv);
     stamps.mark("scene", scene_key);
   }
+  if (args.until == "scene") return summary;
 
   // Vehicle library.
   const fs::path vehicles_dir = out / "vehicles";
   const std::string vehicles_key = sha256_text(version + tables_text(root, {"vehicles"}));
-  if (!args.force && stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
+  if ((!args.force || shared_only) && stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
     spdlog::info("[2/{}] vehicles: up to date ({})", stages, vehicles_dir.string());
   } else {
+    if (shared_only) throw not_built("vehicles", vehicles_dir);
     spdlog::info("[2/{}] vehicles: building {}", stages, vehicles_dir.string());
     VehiclesArgs v;
     v.out = vehicles_dir.string();
@@ -236,6 +295,7 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     run_vehicles_stage(v, argv);
     stamps.mark("vehicles", vehicles_key);
   }
+  if (args.until == "vehicles") return summary;
 
   // Traffic.
   const fs::path traffic_dir = out / "traffic";
@@ -248,9 +308,10 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     const TrafficArgs t = load_traffic_args(args.city, city, traffic_dir.string());
     const std::string traffic_key =
         sha256_text(version + tables_text(root, {"traffic"}) + file_hash(city.net) + file_hash(city.sumocfg));
-    if (!args.force && stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
+    if ((!args.force || shared_only) && stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
       spdlog::info("[3/{}] traffic: up to date ({})", stages, traffic_dir.string());
     } else {
+      if (shared_only) throw not_built("traffic", traffic_dir);
       spdlog::info("[3/{}] traffic: running SUMO into {}", stages, traffic_dir.string());
       run_traffic_stage(t, argv);
       stamps.mark("traffic", traffic_key);
@@ -258,6 +319,7 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     eta_end = read_traffic_record(traffic_dir, fcd, vtype_files);
   }
   if (!city.sumocfg.empty() && vtype_files.empty()) vtype_files.push_back(city.sumocfg);
+  if (args.until == "traffic") return summary;
 
   // Sweep.
   const fs::path dataset = out / "dataset.h5";
@@ -266,22 +328,55 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
                           file_hash((vehicles_dir / "manifest.json").string());
   for (const auto& f : vtype_files) sweep_key += file_hash(f);
   sweep_key = sha256_text(sweep_key);
-  if (!args.force && stamps.up_to_date("sweep", sweep_key, dataset)) {
+  SweepArgs sweep_args;
+  sweep_args.scene = scene_dir.string();
+  sweep_args.vehicles = vehicles_dir.string();
+  sweep_args.fcd = fcd;
+  sweep_args.vtypes = vtype_files;
+  sweep_args.rsus = city.rsus;
+  sweep_args.out = dataset.string();
+  sweep_args.config = args.city;
+  sweep_args.resume = args.resume;
+  sweep_args.eta_end_s = eta_end;
+  if (args.shard) {
+    // One shard: its blocks into <out>/shards/, stamped on its own so that a
+    // rerun (an MPI job restarted with --resume) skips the finished shards.
+    const fs::path file = out / "shards" / shard_file_name(*args.shard);
+    const std::string stage = "sweep." + args.shard->name();
+    if (!args.force && stamps.up_to_date(stage, sweep_key, file)) {
+      spdlog::info("[4/{}] sweep shard {}: up to date ({})", stages, args.shard->name(), file.string());
+    } else {
+      spdlog::info("[4/{}] sweep shard {}: tracing its blocks of {} into {}", stages, args.shard->name(), fcd,
+                   file.string());
+      sweep_args.out = file.string();
+      sweep_args.shard = args.shard;
+      summary["sweep"] = run_sweep_stage(sweep_args, argv);
+      stamps.mark(stage, sweep_key);
+    }
+    summary["shard"] = file.string();
+    return summary;
+  }
+  if (args.merge) {
+    const auto files = shard_files(out / "shards", args.merge_count, out / ".stamps", sweep_key,
+                                   "; run `raysweep run " + args.city + out_opt + " --shard I/N` for I = 0..N-1 first");
+    spdlog::info("[4/{}] sweep: merging {} shard files of {} into {}", stages, files.size(), (out / "shards").string(),
+                 dataset.string());
+    MergeArgs m;
+    m.shards = files;
+    m.out = dataset.string();
+    m.virtual_dataset = args.virtual_dataset;
+    summary["merge"] = run_merge_stage(m);
+    stamps.mark("sweep", sweep_key);
+  } else if (!args.force && stamps.up_to_date("sweep", sweep_key, dataset)) {
     spdlog::info("[4/{}] sweep: up to date ({})", stages, dataset.string());
   } else {
     spdlog::info("[4/{}] sweep: tracing {} into {}", stages, fcd, dataset.string());
-    SweepArgs s;
-    s.scene = scene_dir.string();
-    s.vehicles = vehicles_dir.string();
-    s.fcd = fcd;
-    s.vtypes = vtype_files;
-    s.rsus = city.rsus;
-    s.out = dataset.string();
-    s.config = args.city;
-    s.resume = args.resume;
-    s.eta_end_s = eta_end;
-    summary["sweep"] = run_sweep_stage(s, argv);
+    summary["sweep"] = run_sweep_stage(sweep_args, argv);
     stamps.mark("sweep", sweep_key);
+  }
+  if (args.until == "sweep") {
+    summary["dataset"] = dataset.string();
+    return summary;
   }
   // The picture people look at first: path gain against distance per LoS class.
   const fs::path png = out / "dataset.png";

@@ -7,10 +7,14 @@
 // [materials.*] configure the stages (see datasets/demo/city.toml).
 #pragma once
 
+#include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
+
+#include "pipeline/shard.hpp"
 
 namespace raysweep::pipeline {
 
@@ -19,6 +23,17 @@ struct CityRunArgs {
   std::string out;   // default: [city] out, else out/<name>
   bool resume = false;
   bool force = false;  // run every stage even when up to date
+  // Scale-out (docs/scaleout.md). `until`: stop after this stage (scene,
+  // vehicles, traffic or sweep); `--until traffic` once builds what every shard
+  // shares. `shard`: trace this shard's blocks into <out>/shards/ and stop;
+  // the earlier stages must be up to date (they are not rebuilt per shard).
+  // `merge`: merge <out>/shards/ (the `merge_count` shards, 0: the one count
+  // found there) into <out>/dataset.h5, then run the later stages.
+  std::string until;
+  std::optional<ShardSpec> shard;
+  bool merge = false;
+  std::uint32_t merge_count = 0;
+  bool virtual_dataset = false;  // merge into an HDF5 virtual dataset over the shards
 };
 
 struct CityConfig {

@@ -14,6 +14,8 @@
 #include "meshkit/errors.hpp"
 #include "pipeline/city_run.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/merge_stage.hpp"
+#include "pipeline/mpi_run.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
@@ -141,6 +143,8 @@ int main(int argc, char** argv) {
   sw->add_option("--out", sweep.out, "output .h5")->required();
   sw->add_option("--config", sweep.config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
   sw->add_flag("--resume", sweep.resume, "continue an interrupted run (keeps its committed blocks)");
+  std::string sweep_shard;
+  sw->add_option("--shard", sweep_shard, "I/N: trace only blocks b with b mod N = I into a shard file (raysweep merge)");
 
   raysweep::pipeline::CityRunArgs city;
   auto* rc = app.add_subcommand("run", "one city: scene -> vehicles -> traffic -> sweep (skips up-to-date stages)");
@@ -148,6 +152,19 @@ int main(int argc, char** argv) {
   rc->add_option("--out", city.out, "output folder (default: [city] out or out/<name>)");
   rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
   rc->add_flag("--force", city.force, "run every stage even when up to date");
+  std::string run_shard;
+  bool run_mpi = false;
+  rc->add_option("--until", city.until, "stop after this stage: scene, vehicles, traffic or sweep");
+  rc->add_option("--shard", run_shard, "I/N: trace shard I of N into <out>/shards/dataset.I-of-N.h5 and stop");
+  rc->add_flag("--merge", city.merge, "merge <out>/shards/ into <out>/dataset.h5, then run the later stages");
+  rc->add_flag("--virtual", city.virtual_dataset, "with --merge or --mpi: an HDF5 virtual dataset over the shards");
+  rc->add_flag("--mpi", run_mpi, "under mpirun: rank r traces shard r/N, rank 0 merges and runs the later stages");
+
+  raysweep::pipeline::MergeArgs merge;
+  auto* mg = app.add_subcommand("merge", "merge the shard files of a sweep (--shard I/N) into one dataset");
+  mg->add_option("shards", merge.shards, "shard files (every shard of the sweep once)")->required();
+  mg->add_option("--out", merge.out, "output .h5")->required();
+  mg->add_flag("--virtual", merge.virtual_dataset, "an HDF5 virtual dataset over the shard files instead of a copy");
 
   raysweep::pipeline::SinrArgs sinr;
   std::uint64_t sinr_seed = 0;
@@ -250,6 +267,7 @@ int main(int argc, char** argv) {
       std::cout << traffic.out << ": " << rec["fcd"].get<std::string>() << " (" << rec["fcd_bytes"] << " bytes)\n";
     }
     if (sw->parsed()) {
+      if (!sweep_shard.empty()) sweep.shard = raysweep::pipeline::parse_shard(sweep_shard);
       const auto summary = raysweep::pipeline::run_sweep_stage(sweep, args);
       std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"] << " pair-channels ("
                 << summary["traced_links"] << " traced), " << summary["bytes"] << " bytes\n";
@@ -268,8 +286,32 @@ int main(int argc, char** argv) {
       std::cout << r["table"].get<std::string>();
       for (const auto& png : r["pngs"]) std::cout << "picture: " << png.get<std::string>() << "\n";
     }
+    if (mg->parsed()) {
+      const auto summary = raysweep::pipeline::run_merge_stage(merge);
+      std::cout << merge.out << ": " << summary["frames"] << " frames from " << summary["shards"] << " shards ("
+                << summary["blocks"] << " blocks)" << (merge.virtual_dataset ? ", virtual dataset" : "") << ", "
+                << summary["bytes"] << " bytes\n";
+    }
     if (rc->parsed()) {
-      const auto summary = raysweep::pipeline::run_city(city, args);
+      if (!run_shard.empty()) city.shard = raysweep::pipeline::parse_shard(run_shard);
+      if (city.virtual_dataset && !city.merge && !run_mpi)
+        throw std::invalid_argument("--virtual goes with --merge or --mpi");
+      std::optional<nlohmann::json> result;
+      if (run_mpi) {
+        result = raysweep::pipeline::run_city_mpi(city, args);
+        if (!result) return 0;  // ranks other than 0: their shard is done
+      } else {
+        result = raysweep::pipeline::run_city(city, args);
+      }
+      const auto& summary = *result;
+      if (summary.contains("shard")) {
+        std::cout << "shard: " << summary["shard"].get<std::string>() << "\n";
+        return 0;
+      }
+      if (!summary.contains("info")) {
+        std::cout << "stages up to " << city.until << " done in " << summary["out"].get<std::string>() << "\n";
+        return 0;
+      }
       std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n";
       if (summary.contains("png")) std::cout << "picture: " << summary["png"].get<std::string>() << "\n";
       std::cout << raysweep::generators::format_dataset_info(summary["info"])

@@ -66,9 +66,12 @@ nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>
 
 std::vector<std::string> recorded_command(const std::vector<std::string>& argv) {
   std::vector<std::string> out;
+  auto starts = [](const std::string& a, const char* prefix) { return a.rfind(prefix, 0) == 0; };
   for (std::size_t i = 0; i < argv.size(); ++i) {
-    if (argv[i] == "--resume" || argv[i] == "-q" || argv[i] == "--quiet") continue;
-    if (argv[i] == "--threads" || argv[i] == "-j") {
+    const std::string& a = argv[i];
+    if (a == "--resume" || a == "-q" || a == "--quiet" || a == "--merge" || a == "--mpi" || a == "--virtual") continue;
+    if (starts(a, "--shard=") || starts(a, "--until=") || starts(a, "--threads=")) continue;
+    if (a == "--threads" || a == "-j" || a == "--shard" || a == "--until") {
       ++i;
       continue;
     }

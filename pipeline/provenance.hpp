@@ -20,7 +20,10 @@ struct InputFile {
 
 // The command line as provenance records it: without the options that change no
 // number in the output (--resume, -q/--quiet, -j/--threads N), so a resumed run
-// or another thread count gives the same file.
+// or another thread count gives the same file; nor those that only split the
+// work of `run` over stages, processes and machines (--until STAGE, --shard I/N,
+// --merge, --mpi, --virtual), so a sharded and merged run records the command of
+// the single-process run and writes the same bytes (docs/scaleout.md).
 std::vector<std::string> recorded_command(const std::vector<std::string>& argv);
 
 nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>& inputs,

@@ -235,6 +235,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   json prov = provenance("sweep", inputs, config, recorded_command(argv));
   prov["embree"] = tracer::embree_version();
   const std::string run_key = json{{"config", config}, {"inputs", prov["inputs"]}, {"version", kVersion}}.dump();
+  auto mine = [&](std::uint64_t block) { return !args.shard || args.shard->owns(block); };
 
   const fs::path out(args.out);
   const fs::path parts = out.string() + ".parts";
@@ -329,8 +330,8 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
         if (!skipping_block) commit_block();
         ++block_index;
       }
-      skipping_block = false;
-      if (args.resume && fs::exists(parts / (block_name(block_index) + ".bin")) &&
+      skipping_block = !mine(block_index);
+      if (!skipping_block && args.resume && fs::exists(parts / (block_name(block_index) + ".bin")) &&
           fs::exists(parts / (block_name(block_index) + ".json"))) {
         try {
           generators::read_frame_block(parts / (block_name(block_index) + ".bin"));
@@ -382,7 +383,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       const double end = std::min(cfg.end_s, args.eta_end_s >= 0 ? args.eta_end_s : 1e300);
       if (end < 1e299 && frame_index > 1 && last_time > first_time) {
         const double dt = (last_time - first_time) / static_cast<double>(frame_index - 1);
-        const double left = std::max(0.0, (end - last_time) / dt);
+        const double left = std::max(0.0, (end - last_time) / dt) / (args.shard ? args.shard->count : 1);
         eta = fmt::format(", ETA {:.0f} s", left / std::max(fps, 1e-9));
       }
       spdlog::info("frame {} (t = {:.1f} s): {:.1f} frames/s, {:.0f} pair-channels/s, cache hit {:.0f}%{}",
@@ -394,7 +395,22 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   const std::uint64_t dropped_outside = selection.dropped_outside();
   if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
 
-  // Assemble the dataset from the committed blocks.
+  ShardRecord shard;
+  if (args.shard) {
+    shard.spec = *args.shard;
+    shard.block_frames = options.block_frames;
+    shard.blocks_total = block_index + 1;
+    shard.frames_total = frame_index;
+    for (std::uint64_t b = 0; b <= block_index; ++b)
+      if (mine(b)) shard.blocks.push_back(b);
+    shard.run_key = sha256_text(run_key + kGitHash);
+    shard.out = args.out;
+    if (shard.blocks.empty())
+      spdlog::warn("{}: shard {} has no block to trace (the sweep has {} blocks of {} frames)", args.out,
+                   args.shard->name(), shard.blocks_total, shard.block_frames);
+  }
+
+  // Assemble the dataset (or the shard) from the committed blocks.
   generators::DatasetHeader header;
   header.raysweep_version = kVersion;
   header.git_hash = kGitHash;
@@ -402,6 +418,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   header.inputs = prov["inputs"];
   header.provenance = prov;
   header.seed = 0;
+  if (args.shard) header.shard = shard.to_json().dump();
   header.carrier_hz = settings.radio.frequency_hz;
   header.bandwidth_hz = settings.radio.bandwidth_hz;
   if (options.cfr) {
@@ -414,6 +431,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   {
     generators::DatasetWriter writer(tmp, header);
     for (std::uint64_t b = 0; b <= block_index; ++b) {
+      if (!mine(b)) continue;
       for (const auto& f : generators::read_frame_block(parts / (block_name(b) + ".bin"))) writer.append(f);
       std::ifstream in(parts / (block_name(b) + ".json"));
       const json st = json::parse(in);
@@ -428,13 +446,16 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   }
   fs::rename(tmp, out);
   fs::remove_all(parts);
+  // A merge record next to the file describes an earlier, merged version of it.
+  if (!args.shard) fs::remove(out.string() + ".merge.json");
 
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   const auto links = totals["links"].get<std::uint64_t>();
   const auto traced = totals["traced_links"].get<std::uint64_t>();
   json summary = totals;
   summary["out"] = args.out;
-  summary["blocks"] = block_index + 1;
+  summary["blocks"] = args.shard ? shard.blocks.size() : block_index + 1;
+  if (args.shard) summary["shard"] = shard.to_json();
   summary["blocks_resumed"] = blocks_resumed;
   summary["nodes"] = node_table.size();
   summary["cache"] = generators::cache_mode_name(options.cache);

@@ -6,7 +6,8 @@
 // a temporary file that is renamed into place. After a kill, --resume keeps
 // the committed blocks (when config and inputs are unchanged) and traces the
 // rest; the Sweep restarts its cache at every block, so the result equals an
-// uninterrupted run's.
+// uninterrupted run's. The same independence of blocks lets a shard trace
+// every N-th block only (shard.hpp).
 #pragma once
 
 #include <cstdint>
@@ -22,6 +23,7 @@
 #include "generators/sweep.hpp"
 #include "meshkit/scene.hpp"
 #include "pipeline/fcd.hpp"
+#include "pipeline/shard.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/vtypes.hpp"
 
@@ -37,6 +39,9 @@ struct SweepArgs {
   std::string config;    // TOML: [sweep], [radio], [tracer], [materials.*]
   bool resume = false;
   double eta_end_s = -1;  // simulation end known by the caller (progress ETA); < 0 unknown
+  // Trace only this shard's blocks and write a shard file (root attribute
+  // `shard`) instead of the whole dataset; `raysweep merge` joins the shards.
+  std::optional<ShardSpec> shard;
 };
 
 // [sweep] table. Unknown keys and bad values are ConfigErrors naming file,

@@ -251,7 +251,7 @@ TEST(Dataset, RoundTripEveryField) {
 
   // Root attributes.
   EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
-  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.2.0");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.3.0");
   EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
   EXPECT_EQ(str_attr(file, "/", "git_hash"), "0123456789ab");
   EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "config")), test_header().config);
@@ -422,7 +422,7 @@ TEST(Dataset, RoundTripEveryField) {
   EXPECT_TRUE(problems.empty()) << joined(problems);
 
   const auto info = dataset_info(file.string());
-  EXPECT_EQ(info["schema_version"], "1.2.0");
+  EXPECT_EQ(info["schema_version"], "1.3.0");
   EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
   EXPECT_EQ(info["frames"], 3);
   EXPECT_EQ(info["time_start_s"], 0.0);

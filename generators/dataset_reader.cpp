@@ -1,0 +1,254 @@
+#include "generators/dataset_reader.hpp"
+
+#include <hdf5.h>
+
+#include <map>
+
+#include "generators/hdf5_columns.hpp"
+#include "meshkit/errors.hpp"
+
+namespace raysweep::generators {
+
+using hdf5::Handle;
+using hdf5::QuietHdf5;
+using hdf5::read_rows;
+
+struct DatasetReader::Impl {
+  std::string file;
+  Handle fid;
+  hdf5::Types types;
+  DatasetHeader header;
+  std::string schema_version;
+  bool complete = false;
+  std::vector<NodeInfo> nodes;
+  std::vector<std::string> objects;
+  std::vector<double> time;
+  std::vector<std::uint64_t> node_offset, link_offset;
+  std::vector<std::uint32_t> node_count, link_count;
+  std::map<std::string, Handle> dsets;
+  hsize_t S = 0, L = 0, P = 0, I = 0, K = 0;
+
+  explicit Impl(std::string path) : file(std::move(path)), types(file) {}
+
+  [[noreturn]] void fail(const std::string& what) const { throw meshkit::InputError(file, "", what); }
+
+  hid_t dset(const std::string& name) {
+    auto it = dsets.find(name);
+    if (it != dsets.end()) return it->second.get();
+    Handle d(H5Dopen2(fid.get(), name.c_str(), H5P_DEFAULT), H5Dclose);
+    if (!d.valid()) fail(name + ": missing or unreadable (" + hdf5::hdf5_error_text() + ")");
+    return dsets.emplace(name, std::move(d)).first->second.get();
+  }
+  hsize_t rows(const std::string& name) {
+    const auto dims = hdf5::dataset_dims(dset(name), name);
+    if (dims.empty()) fail(name + ": not an array");
+    return dims[0];
+  }
+  template <class T>
+  std::vector<T> read(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width = 1) {
+    return read_rows<T>(dset(name), name, mtype, start, n, width);
+  }
+  std::string str_attr(const std::string& name) { return hdf5::read_str_attr(fid.get(), "/", name); }
+  nlohmann::json json_attr(const std::string& name) {
+    const std::string text = str_attr(name);
+    if (!nlohmann::json::accept(text)) fail("attribute " + name + ": not valid JSON text");
+    return nlohmann::json::parse(text);
+  }
+
+  void open() {
+    fid = Handle(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!fid.valid()) fail("cannot open as HDF5 (" + hdf5::hdf5_error_text() + ")");
+    if (!hdf5::has_attr(fid.get(), "format") || str_attr("format") != kDatasetFormat)
+      fail(std::string("not a raysweep channel dataset (format is not ") + kDatasetFormat + ")");
+    schema_version = str_attr("schema_version");
+    int supported = 0;
+    std::sscanf(kDatasetSchemaVersion, "%d", &supported);
+    if (hdf5::major_version(schema_version) != supported)
+      fail("schema_version " + schema_version + " is not " + std::to_string(supported) + ".x");
+    complete = hdf5::has_attr(fid.get(), "complete");
+    header.raysweep_version = str_attr("raysweep_version");
+    header.git_hash = str_attr("git_hash");
+    header.config = json_attr("config");
+    header.inputs = json_attr("inputs");
+    header.provenance = json_attr("provenance");
+    header.seed = hdf5::read_num_attr<std::uint64_t>(fid.get(), "/", "seed", H5T_NATIVE_UINT64);
+    header.carrier_hz = hdf5::read_num_attr<double>(fid.get(), "/", "carrier_hz", H5T_NATIVE_DOUBLE);
+    header.bandwidth_hz = hdf5::read_num_attr<double>(fid.get(), "/", "bandwidth_hz", H5T_NATIVE_DOUBLE);
+    if (hdf5::has_attr(fid.get(), "shard")) header.shard = str_attr("shard");
+    if (hdf5::has_link(fid.get(), "cfr")) {
+      Handle g(H5Gopen2(fid.get(), "cfr", H5P_DEFAULT), H5Gclose);
+      if (!g.valid()) fail("/cfr: not a group");
+      header.cfr_subcarriers = hdf5::read_num_attr<std::uint32_t>(g.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
+      header.cfr_subcarrier_spacing_hz =
+          hdf5::read_num_attr<double>(g.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
+      K = header.cfr_subcarriers;
+    }
+
+    const hsize_t F = rows("/frames/time_s");
+    time = read<double>("/frames/time_s", H5T_NATIVE_DOUBLE, 0, F);
+    node_offset = read<std::uint64_t>("/frames/node_offset", H5T_NATIVE_UINT64, 0, F);
+    link_offset = read<std::uint64_t>("/frames/link_offset", H5T_NATIVE_UINT64, 0, F);
+    node_count = read<std::uint32_t>("/frames/node_count", H5T_NATIVE_UINT32, 0, F);
+    link_count = read<std::uint32_t>("/frames/link_count", H5T_NATIVE_UINT32, 0, F);
+    S = rows("/node_states/node");
+    L = rows("/links/tx");
+    P = rows("/paths/tau_s");
+    I = rows("/interactions/type");
+    std::uint64_t s = 0, l = 0;
+    for (hsize_t f = 0; f < F; ++f) {
+      if (node_offset[f] != s || link_offset[f] != l)
+        fail("/frames: offsets of frame " + std::to_string(f) + " are not the running sums of the counts");
+      s += node_count[f];
+      l += link_count[f];
+    }
+    if (s != S || l != L) fail("/frames: counts do not add up to the /node_states and /links sizes");
+
+    if (complete) {
+      const hsize_t N = rows("/nodes/id");
+      const auto ids = hdf5::read_strings(dset("/nodes/id"), "/nodes/id");
+      const auto vclass = hdf5::read_strings(dset("/nodes/vclass"), "/nodes/vclass");
+      const auto vtype = hdf5::read_strings(dset("/nodes/vtype"), "/nodes/vtype");
+      const auto kind = read<std::uint8_t>("/nodes/kind", H5T_NATIVE_UINT8, 0, N);
+      const auto dims = read<float>("/nodes/dimensions", H5T_NATIVE_FLOAT, 0, N, 3);
+      if (vclass.size() != N || vtype.size() != N) fail("/nodes: tables of different lengths");
+      for (hsize_t i = 0; i < N; ++i)
+        nodes.push_back({ids[i], static_cast<NodeKind>(kind[i]), vclass[i], vtype[i], dims[3 * i], dims[3 * i + 1],
+                         dims[3 * i + 2]});
+      objects = hdf5::read_strings(dset("/objects/name"), "/objects/name");
+    }
+  }
+
+  std::uint64_t path_start(std::uint64_t link) {
+    return link >= L ? P : read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, link, 1)[0];
+  }
+  std::uint64_t interaction_start(std::uint64_t path) {
+    return path >= P ? I : read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, path, 1)[0];
+  }
+
+  FrameRows rows_at(std::uint64_t f) {
+    if (f > time.size()) fail("frame " + std::to_string(f) + " beyond its " + std::to_string(time.size()) + " frames");
+    FrameRows r;
+    r.states = f < time.size() ? node_offset[f] : S;
+    r.links = f < time.size() ? link_offset[f] : L;
+    r.paths = path_start(r.links);
+    r.interactions = interaction_start(r.paths);
+    return r;
+  }
+
+  std::vector<FrameRecord> frames(std::uint64_t first, std::uint64_t count) {
+    if (first + count > time.size())
+      fail("frames " + std::to_string(first) + "+" + std::to_string(count) + " beyond its " +
+           std::to_string(time.size()) + " frames");
+    const FrameRows a = rows_at(first), b = rows_at(first + count);
+    if (b.paths < a.paths || b.interactions < a.interactions) fail("/links, /paths: offsets decrease");
+    const hsize_t ns = b.states - a.states, nl = b.links - a.links, np = b.paths - a.paths,
+                  ni = b.interactions - a.interactions;
+
+    const auto s_node = read<std::uint32_t>("/node_states/node", H5T_NATIVE_UINT32, a.states, ns);
+    const auto s_pos = read<double>("/node_states/position", H5T_NATIVE_DOUBLE, a.states, ns, 3);
+    const auto s_vel = read<float>("/node_states/velocity", H5T_NATIVE_FLOAT, a.states, ns, 3);
+    const auto s_head = read<float>("/node_states/heading_deg", H5T_NATIVE_FLOAT, a.states, ns);
+
+    const auto u8 = H5T_NATIVE_UINT8, u16 = H5T_NATIVE_UINT16, u32 = H5T_NATIVE_UINT32, f32 = H5T_NATIVE_FLOAT;
+    const auto l_tx = read<std::uint32_t>("/links/tx", u32, a.links, nl);
+    const auto l_rx = read<std::uint32_t>("/links/rx", u32, a.links, nl);
+    const auto l_los = read<std::uint8_t>("/links/los_class", u8, a.links, nl);
+    const auto l_flags = read<std::uint8_t>("/links/flags", u8, a.links, nl);
+    const auto l_block = read<std::uint16_t>("/links/blocker_count", u16, a.links, nl);
+    const auto l_gc = read<float>("/links/gain_coherent_db", f32, a.links, nl);
+    const auto l_gi = read<float>("/links/gain_incoherent_db", f32, a.links, nl);
+    const auto l_fd = read<double>("/links/first_delay_s", H5T_NATIVE_DOUBLE, a.links, nl);
+    const auto l_rms = read<float>("/links/rms_delay_spread_s", f32, a.links, nl);
+    const auto l_pc = read<std::uint32_t>("/links/path_count", u32, a.links, nl);
+    const auto l_po = read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, a.links, nl);
+    const auto l_below = read<std::uint32_t>("/links/paths_below_threshold", u32, a.links, nl);
+    const auto l_losf = read<std::uint8_t>("/links/los_class_fresnel", u8, a.links, nl);
+    const auto l_clear = read<float>("/links/fresnel_clearance", f32, a.links, nl);
+
+    const auto p_a = read<std::complex<float>>("/paths/a", types.mem(hdf5::Dtype::c64), a.paths, np);
+    const auto p_tau = read<double>("/paths/tau_s", H5T_NATIVE_DOUBLE, a.paths, np);
+    const auto p_aod = read<float>("/paths/aod", f32, a.paths, np, 2);
+    const auto p_aoa = read<float>("/paths/aoa", f32, a.paths, np, 2);
+    const auto p_dop = read<float>("/paths/doppler_hz", f32, a.paths, np);
+    const auto p_ic = read<std::uint8_t>("/paths/interaction_count", u8, a.paths, np);
+    const auto p_io = read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, a.paths, np);
+
+    const auto i_type = read<std::uint8_t>("/interactions/type", u8, a.interactions, ni);
+    const auto i_obj = read<std::uint32_t>("/interactions/object", u32, a.interactions, ni);
+    const auto i_pt = read<float>("/interactions/point", f32, a.interactions, ni, 3);
+
+    std::vector<std::complex<float>> cfr;
+    if (K > 0) cfr = read<std::complex<float>>("/cfr/h", types.mem(hdf5::Dtype::c64), a.links, nl, K);
+
+    std::vector<FrameRecord> out(static_cast<std::size_t>(count));
+    std::size_t s = 0, l = 0, p = 0, i = 0;
+    std::uint64_t po = a.paths, io = a.interactions;
+    for (std::uint64_t k = 0; k < count; ++k) {
+      const std::uint64_t f = first + k;
+      FrameRecord& fr = out[k];
+      fr.time_s = time[f];
+      for (std::uint32_t j = 0; j < node_count[f]; ++j, ++s)
+        fr.nodes.push_back({s_node[s], s_pos[3 * s], s_pos[3 * s + 1], s_pos[3 * s + 2], s_vel[3 * s], s_vel[3 * s + 1],
+                            s_vel[3 * s + 2], s_head[s]});
+      const std::size_t l0 = l;
+      for (std::uint32_t j = 0; j < link_count[f]; ++j, ++l) {
+        if (l_po[l] != po) fail("/links/path_offset: row " + std::to_string(a.links + l) + " is not the running sum");
+        fr.links.push_back({l_tx[l], l_rx[l], l_los[l], l_flags[l], l_block[l], l_gc[l], l_gi[l], l_fd[l], l_rms[l],
+                            l_pc[l], l_below[l], l_losf[l], l_clear[l]});
+        for (std::uint32_t q = 0; q < l_pc[l]; ++q, ++p, ++po) {
+          if (p >= np || p_io[p] != io)
+            fail("/paths/interaction_offset: row " + std::to_string(a.paths + p) + " is not the running sum");
+          fr.paths.push_back({p_a[p], p_tau[p], p_aod[2 * p], p_aod[2 * p + 1], p_aoa[2 * p], p_aoa[2 * p + 1], p_dop[p],
+                              p_ic[p]});
+          for (std::uint8_t m = 0; m < p_ic[p]; ++m, ++i, ++io) {
+            if (i >= ni) fail("/interactions: fewer rows than the paths' interaction counts");
+            fr.interactions.push_back({i_type[i], i_obj[i], i_pt[3 * i], i_pt[3 * i + 1], i_pt[3 * i + 2]});
+          }
+        }
+      }
+      if (K > 0) fr.cfr.assign(cfr.begin() + static_cast<std::ptrdiff_t>(l0 * K), cfr.begin() + static_cast<std::ptrdiff_t>(l * K));
+    }
+    if (p != np || i != ni) fail("/paths, /interactions: rows left over after the frames' links and paths");
+    return out;
+  }
+};
+
+DatasetReader::DatasetReader(const std::filesystem::path& path) {
+  QuietHdf5 quiet;
+  impl_ = std::make_unique<Impl>(path.string());
+  try {
+    impl_->open();
+  } catch (const hdf5::ReadError& e) {
+    throw meshkit::InputError(path.string(), "", e.what());
+  }
+}
+
+DatasetReader::~DatasetReader() = default;
+
+const std::string& DatasetReader::path() const { return impl_->file; }
+const DatasetHeader& DatasetReader::header() const { return impl_->header; }
+const std::string& DatasetReader::schema_version() const { return impl_->schema_version; }
+bool DatasetReader::complete() const { return impl_->complete; }
+std::uint64_t DatasetReader::frame_count() const { return impl_->time.size(); }
+const std::vector<NodeInfo>& DatasetReader::nodes() const { return impl_->nodes; }
+const std::vector<std::string>& DatasetReader::objects() const { return impl_->objects; }
+
+std::vector<FrameRecord> DatasetReader::frames(std::uint64_t first, std::uint64_t count) {
+  QuietHdf5 quiet;
+  try {
+    return impl_->frames(first, count);
+  } catch (const hdf5::ReadError& e) {
+    throw meshkit::InputError(impl_->file, "", e.what());
+  }
+}
+
+FrameRows DatasetReader::rows_at(std::uint64_t frame) {
+  QuietHdf5 quiet;
+  try {
+    return impl_->rows_at(frame);
+  } catch (const hdf5::ReadError& e) {
+    throw meshkit::InputError(impl_->file, "", e.what());
+  }
+}
+
+}  // namespace raysweep::generators

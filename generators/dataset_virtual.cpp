@@ -1,0 +1,203 @@
+#include "generators/dataset_virtual.hpp"
+
+#include <hdf5.h>
+
+#include <map>
+#include <memory>
+
+#include "generators/dataset_reader.hpp"
+#include "generators/dataset_schema.hpp"
+#include "generators/hdf5_columns.hpp"
+#include "meshkit/errors.hpp"
+
+namespace raysweep::generators {
+
+using hdf5::Column;
+using hdf5::ColumnFile;
+using hdf5::Dtype;
+using hdf5::Handle;
+
+namespace {
+
+// The columns holding row numbers of the whole file: computed, not mapped.
+bool computed(const std::string& group, const std::string& name) {
+  return group == "frames" || (group == "links" && (name == "frame" || name == "path_offset")) ||
+         (group == "paths" && name == "interaction_offset");
+}
+
+struct Piece {
+  const VirtualPiece* spec;
+  DatasetReader* reader;
+  Handle fid;  // the source, for its index columns
+  FrameRows a, b, end;  // rows at the first frame, after the last, and the source's sizes
+};
+
+template <class T>
+std::vector<T> read_source(const Piece& p, const std::string& name, hid_t mtype, hsize_t start, hsize_t n) {
+  Handle d(H5Dopen2(p.fid.get(), name.c_str(), H5P_DEFAULT), H5Dclose);
+  if (!d.valid()) throw meshkit::InputError(p.spec->file.string(), name, "cannot open");
+  try {
+    return hdf5::read_rows<T>(d.get(), name, mtype, start, n);
+  } catch (const hdf5::ReadError& e) {
+    throw meshkit::InputError(p.spec->file.string(), "", e.what());
+  }
+}
+
+}  // namespace
+
+void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader& header,
+                           const std::vector<NodeInfo>& nodes, const std::vector<std::string>& objects,
+                           const std::vector<VirtualPiece>& pieces) {
+  hdf5::QuietHdf5 quiet;
+  const std::string file = out.string();
+  std::map<std::filesystem::path, std::unique_ptr<DatasetReader>> readers;
+  std::vector<Piece> ps;
+  FrameRows total;
+  std::uint64_t frames = 0;
+  for (const auto& spec : pieces) {
+    auto& r = readers[spec.file];
+    if (!r) r = std::make_unique<DatasetReader>(spec.file);
+    Piece p{&spec, r.get(), Handle(H5Fopen(spec.file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose), {}, {}, {}};
+    if (!p.fid.valid()) throw meshkit::InputError(spec.file.string(), "", "cannot open as HDF5");
+    p.a = r->rows_at(spec.first_frame);
+    p.b = r->rows_at(spec.first_frame + spec.frame_count);
+    p.end = r->rows_at(r->frame_count());
+    total.states += p.b.states - p.a.states;
+    total.links += p.b.links - p.a.links;
+    total.paths += p.b.paths - p.a.paths;
+    total.interactions += p.b.interactions - p.a.interactions;
+    frames += spec.frame_count;
+    ps.push_back(std::move(p));
+  }
+
+  const hsize_t K = header.cfr_subcarriers;
+  ColumnFile cf(file, dataset_schema(), {{"K", K}});
+  cf.create();
+  cf.identity_attrs(kDatasetFormat, kDatasetSchemaVersion, header.raysweep_version, header.git_hash, header.config,
+                    header.inputs, header.provenance, header.seed);
+  cf.attr("", "carrier_hz", header.carrier_hz);
+  cf.attr("", "bandwidth_hz", header.bandwidth_hz);
+  if (!header.shard.empty()) cf.attr("", "shard", header.shard);
+  if (K > 0) {
+    cf.attr("cfr", "carrier_hz", header.carrier_hz);
+    cf.attr("cfr", "subcarrier_spacing_hz", header.cfr_subcarrier_spacing_hz);
+    cf.attr("cfr", "subcarriers", std::uint32_t{header.cfr_subcarriers});
+  }
+
+  // Computed columns.
+  Column* f_time = cf.column("frames", "time_s", Dtype::f64);
+  Column* f_noff = cf.column("frames", "node_offset", Dtype::u64);
+  Column* f_ncount = cf.column("frames", "node_count", Dtype::u32);
+  Column* f_loff = cf.column("frames", "link_offset", Dtype::u64);
+  Column* f_lcount = cf.column("frames", "link_count", Dtype::u32);
+  Column* l_frame = cf.column("links", "frame", Dtype::u32);
+  Column* l_poff = cf.column("links", "path_offset", Dtype::u64);
+  Column* p_ioff = cf.column("paths", "interaction_offset", Dtype::u64);
+  FrameRows at;  // rows of the pieces before this one
+  std::uint64_t frame = 0;
+  for (const auto& p : ps) {
+    const auto& s = *p.spec;
+    const auto time = read_source<double>(p, "/frames/time_s", H5T_NATIVE_DOUBLE, s.first_frame, s.frame_count);
+    const auto ncount = read_source<std::uint32_t>(p, "/frames/node_count", H5T_NATIVE_UINT32, s.first_frame, s.frame_count);
+    const auto lcount = read_source<std::uint32_t>(p, "/frames/link_count", H5T_NATIVE_UINT32, s.first_frame, s.frame_count);
+    std::uint64_t st = at.states, lk = at.links;
+    for (std::uint64_t k = 0; k < s.frame_count; ++k) {
+      f_time->put(time[k]);
+      f_noff->put(st);
+      f_ncount->put(ncount[k]);
+      f_loff->put(lk);
+      f_lcount->put(lcount[k]);
+      for (std::uint32_t j = 0; j < lcount[k]; ++j) l_frame->put(static_cast<std::uint32_t>(frame + k));
+      st += ncount[k];
+      lk += lcount[k];
+    }
+    const hsize_t nl = p.b.links - p.a.links, np = p.b.paths - p.a.paths;
+    for (auto v : read_source<std::uint64_t>(p, "/links/path_offset", H5T_NATIVE_UINT64, p.a.links, nl))
+      l_poff->put(std::uint64_t{v - p.a.paths + at.paths});
+    for (auto v : read_source<std::uint64_t>(p, "/paths/interaction_offset", H5T_NATIVE_UINT64, p.a.paths, np))
+      p_ioff->put(std::uint64_t{v - p.a.interactions + at.interactions});
+    cf.maybe_flush();
+    frame += s.frame_count;
+    at.states += p.b.states - p.a.states;
+    at.links += nl;
+    at.paths += np;
+    at.interactions += p.b.interactions - p.a.interactions;
+  }
+
+  // Mapped columns.
+  for (const auto& g : dataset_schema().at("groups")) {
+    const std::string group = g.at("name");
+    if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0)) continue;
+    for (const auto& d : g.at("datasets")) {
+      const std::string name = d.at("name");
+      if (computed(group, name)) continue;
+      const std::string where = "/" + group + "/" + name;
+      const Dtype dtype = hdf5::parse_dtype(d.at("dtype").get<std::string>());
+      const hsize_t width = d.at("shape").size() == 2 ? (d.at("shape")[1].is_string() ? K : d.at("shape")[1].get<hsize_t>()) : 1;
+      const int rank = static_cast<int>(d.at("shape").size());
+      auto rows = [&](const FrameRows& r) {
+        return group == "node_states" ? r.states
+               : group == "paths"     ? r.paths
+               : group == "interactions" ? r.interactions
+                                         : r.links;
+      };
+      const hsize_t n_total = rows(total);
+      if (n_total == 0) {  // nothing to map: an empty column like the writer's
+        cf.column(group, name, dtype);
+        continue;
+      }
+      const hsize_t dims[2] = {n_total, width};
+      Handle vspace(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+      Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+      if (!vspace.valid() || !dcpl.valid() || H5Pset_obj_track_times(dcpl.get(), 0) < 0)
+        hdf5::write_fail(file, where, "cannot set virtual dataset properties");
+      hsize_t dst = 0;
+      for (const auto& p : ps) {
+        const hsize_t n = rows(p.b) - rows(p.a);
+        if (n == 0) continue;
+        const hsize_t src_dims[2] = {rows(p.end), width};
+        Handle sspace(H5Screate_simple(rank, src_dims, nullptr), H5Sclose);
+        const hsize_t s0[2] = {rows(p.a), 0}, d0[2] = {dst, 0}, cnt[2] = {n, width};
+        if (!sspace.valid() || H5Sselect_hyperslab(sspace.get(), H5S_SELECT_SET, s0, nullptr, cnt, nullptr) < 0 ||
+            H5Sselect_hyperslab(vspace.get(), H5S_SELECT_SET, d0, nullptr, cnt, nullptr) < 0 ||
+            H5Pset_virtual(dcpl.get(), vspace.get(), p.spec->mapped_name.c_str(), where.c_str(), sspace.get()) < 0)
+          hdf5::write_fail(file, where, "cannot map rows of " + p.spec->mapped_name);
+        dst += n;
+      }
+      H5Sselect_all(vspace.get());
+      Handle dset(H5Dcreate2(cf.group(group), name.c_str(), cf.types().file(dtype), vspace.get(), H5P_DEFAULT,
+                             dcpl.get(), H5P_DEFAULT),
+                  H5Dclose);
+      if (!dset.valid()) hdf5::write_fail(file, where, "cannot create virtual dataset");
+      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "units", d.at("units").get<std::string>());
+      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "description", d.at("description").get<std::string>());
+      if (dset.close() < 0) hdf5::write_fail(file, where, "cannot close virtual dataset");
+    }
+  }
+
+  cf.flush_all();
+  std::vector<const char*> ids, vclasses, vtypes, names;
+  std::vector<std::uint8_t> kinds;
+  std::vector<float> dims;
+  for (const auto& n : nodes) {
+    ids.push_back(n.id.c_str());
+    vclasses.push_back(n.vclass.c_str());
+    vtypes.push_back(n.vtype.c_str());
+    kinds.push_back(static_cast<std::uint8_t>(n.kind));
+    dims.insert(dims.end(), {n.length_m, n.width_m, n.height_m});
+  }
+  for (const auto& o : objects) names.push_back(o.c_str());
+  cf.table("nodes", "id", Dtype::str, nodes.size(), ids.data());
+  cf.table("nodes", "kind", Dtype::u8, nodes.size(), kinds.data());
+  cf.table("nodes", "vclass", Dtype::str, nodes.size(), vclasses.data());
+  cf.table("nodes", "vtype", Dtype::str, nodes.size(), vtypes.data());
+  cf.table("nodes", "dimensions", Dtype::f32, nodes.size(), dims.data());
+  cf.table("objects", "name", Dtype::str, objects.size(), names.data());
+  cf.attr("", "frame_count", std::uint64_t{frames});
+  cf.attr("", "node_count", std::uint64_t{nodes.size()});
+  cf.attr("", "link_count", std::uint64_t{total.links});
+  cf.attr("", "path_count", std::uint64_t{total.paths});
+  cf.close_all(true);
+}
+
+}  // namespace raysweep::generators
