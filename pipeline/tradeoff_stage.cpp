@@ -264,6 +264,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     ref.tracer.rays_per_source = ref_rays;
     ref.tracer.max_depth = ref_depth;
     ref.tracer.los = ref.tracer.specular = ref.tracer.refraction = ref.tracer.diffuse = ref.tracer.diffraction = true;
+    ref.tracer.vehicle_diffraction = true;
     ref.tracer.path_threshold_db = 0;  // keep every path
     // Diffuse tiles (when the base integrates by tiles): converged.
     ref.tracer.diffuse_tile_m = std::min(base.diffuse_tile_m, 0.25);
@@ -296,6 +297,9 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     grid.push_back(s);
     s = variant(base.diffraction ? "-diffraction" : "+diffraction");
     s.tracer.diffraction = !base.diffraction;
+    grid.push_back(s);
+    s = variant(base.vehicle_diffraction ? "-vehicle knife edges" : "+vehicle knife edges");
+    s.tracer.vehicle_diffraction = !base.vehicle_diffraction;
     grid.push_back(s);
     s = variant(base.refraction ? "-refraction" : "+refraction");
     s.tracer.refraction = !base.refraction;

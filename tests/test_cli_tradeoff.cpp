@@ -172,14 +172,15 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
                          0),
             0u)
       << header;
-  // Reference + rays {256, 1024} x depths {1, 2} + diffuse, diffraction and
-  // refraction toggled + all mechanisms + the sampled search alone + the
-  // coarser LOD + static geometry at 2 m.
-  ASSERT_EQ(rows.size(), 12u);
+  // Reference + rays {256, 1024} x depths {1, 2} + diffuse, diffraction,
+  // the vehicles' knife edges and refraction toggled + all mechanisms + the
+  // sampled search alone + the coarser LOD + static geometry at 2 m.
+  ASSERT_EQ(rows.size(), 13u);
   std::map<std::string, const std::map<std::string, std::string>*> by_label;
   for (const auto& row : rows) by_label[row.at("label")] = &row;
   for (const char* label : {"reference", "r256 d1", "r256 d2", "r1024 d1", "r1024 d2", "r1024 d2 +diffuse",
-                            "r1024 d2 +diffraction", "r1024 d2 -refraction", "r1024 d2 all mechanisms",
+                            "r1024 d2 +diffraction", "r1024 d2 -vehicle knife edges", "r1024 d2 -refraction",
+                            "r1024 d2 all mechanisms",
                             "r1024 d2 sbr search", "r1024 d2 lod1",
                             "r1024 d2 static 2m"})
     EXPECT_TRUE(by_label.count(label)) << label;
@@ -263,9 +264,9 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
-  // reference, r512 d0, r512 d1, three toggles, all mechanisms and the
+  // reference, r512 d0, r512 d1, four toggles, all mechanisms and the
   // sampled search around r512 d1, static 1m.
-  ASSERT_EQ(rows.size(), 9u);
+  ASSERT_EQ(rows.size(), 10u);
   EXPECT_EQ(rows[0].at("rays"), "2048");
   EXPECT_EQ(rows[0].at("depth"), "2");
   EXPECT_EQ(rows[1].at("label"), "r512 d0");
