@@ -401,6 +401,9 @@ void BM_DiffuseAccuracy(benchmark::State& state, const std::string& name) {
   const auto nodes = tracer::vehicle_nodes(*scene);
   tracer::TracerConfig cfg;
   cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
+  cfg.diffuse_shadow_ratio = static_cast<double>(state.range(1)) / 1000;
+  cfg.diffuse_tile_ratio = static_cast<double>(state.range(2)) / 1000;
+  cfg.diffuse_tile_m = static_cast<double>(state.range(3)) / 1000;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   for (auto _ : state) {
@@ -410,6 +413,7 @@ void BM_DiffuseAccuracy(benchmark::State& state, const std::string& name) {
   tracer::TracerConfig fine = cfg;
   fine.diffuse_tile_m = 0.25;
   fine.diffuse_tile_ratio = 0.05;
+  fine.diffuse_shadow_ratio = 0;
   const auto ref = tracer::trace_snapshot(*scene, nodes, fine, radio);
   const auto ref_total = total_power(ref), ref_diffuse = diffuse_power(ref);
   std::vector<unsigned char> all(ref_total.size(), 1), relevant(ref_total.size(), 0);
@@ -422,6 +426,7 @@ void BM_DiffuseAccuracy(benchmark::State& state, const std::string& name) {
   tracer::TracerConfig rays = cfg;
   rays.diffuse_integration = tracer::DiffuseIntegration::rays;
   for (int k : {4096, 65536}) {
+    if (state.range(1) != 0 || state.range(2) != 250) break;  // the rays once per scene and size (defaults)
     rays.rays_per_source = k;
     compare("rays" + std::to_string(k) + "_", tracer::trace_snapshot(*scene, nodes, rays, radio));
   }
@@ -429,6 +434,7 @@ void BM_DiffuseAccuracy(benchmark::State& state, const std::string& name) {
   state.counters["tiles"] = static_cast<double>(snap.stats.diffuse_tiles);
   state.counters["views"] = static_cast<double>(snap.stats.diffuse_views);
   state.counters["ms_views"] = 1e3 * snap.stats.time.diffuse_views;
+  state.counters["tile_rays"] = static_cast<double>(snap.stats.rays);
   state.counters["tms_pairs"] = 1e3 * snap.stats.time.diffuse;
 }
 
@@ -454,9 +460,14 @@ void register_all() {
       for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll})
         snap->Args({n, m});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
+    // Further arguments x 1000: diffuse_shadow_ratio, diffuse_tile_ratio,
+    // diffuse_tile_m.
     benchmark::RegisterBenchmark(("BM_DiffuseAccuracy/" + scene).c_str(), BM_DiffuseAccuracy, scene)
-        ->Arg(20)
-        ->Arg(60)
+        ->Args({20, 0, 250, 1000})
+        ->Args({60, 0, 250, 1000})
+        ->Args({60, 30, 250, 1000})
+        ->Args({60, 60, 250, 1000})
+        ->Args({60, 125, 500, 2000})
         ->Iterations(1)
         ->Unit(benchmark::kMillisecond)
         ->UseRealTime();

@@ -56,6 +56,7 @@ TraceSettings load_trace_config(const std::string& path) {
         else throw ConfigError(where(path, full, node) + ": expected \"tiles\" or \"rays\"");
       } else if (key == "diffuse_tile_m") t.diffuse_tile_m = number(path, full, node);
       else if (key == "diffuse_tile_ratio") t.diffuse_tile_ratio = number(path, full, node);
+      else if (key == "diffuse_shadow_ratio") t.diffuse_shadow_ratio = number(path, full, node);
       else if (key == "diffraction") t.diffraction = boolean(path, full, node);
       else if (key == "vehicle_diffraction") t.vehicle_diffraction = boolean(path, full, node);
       else if (key == "path_threshold_db") t.path_threshold_db = number(path, full, node);
@@ -144,6 +145,7 @@ nlohmann::json TraceSettings::to_json() const {
             {"diffuse_integration", tracer.diffuse_integration == tracer::DiffuseIntegration::tiles ? "tiles" : "rays"},
             {"diffuse_tile_m", tracer.diffuse_tile_m},
             {"diffuse_tile_ratio", tracer.diffuse_tile_ratio},
+            {"diffuse_shadow_ratio", tracer.diffuse_shadow_ratio},
             {"diffraction", tracer.diffraction},
             {"vehicle_diffraction", tracer.vehicle_diffraction},
             {"path_threshold_db", tracer.path_threshold_db},

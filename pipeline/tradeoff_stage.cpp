@@ -269,6 +269,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     // Diffuse tiles (when the base integrates by tiles): converged.
     ref.tracer.diffuse_tile_m = std::min(base.diffuse_tile_m, 0.25);
     ref.tracer.diffuse_tile_ratio = std::min(base.diffuse_tile_ratio, 0.05);
+    ref.tracer.diffuse_shadow_ratio = 0;
     ref.lod = 0;
     grid.push_back(ref);
   }

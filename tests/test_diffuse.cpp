@@ -577,13 +577,14 @@ TEST(DiffuseTiles, ConvergeUnderRefinementWithShadows) {
   cfg.specular = false;  // the diffuse part alone
   cfg.diffraction = false;
   cfg.path_threshold_db = 0;
-  auto run = [&](double tile, double ratio) {
+  auto run = [&](double tile, double ratio, double shadow) {
     auto c = cfg;
     c.diffuse_tile_m = tile;
     c.diffuse_tile_ratio = ratio;
+    c.diffuse_shadow_ratio = shadow;
     return pair_diffuse(tracer::trace_snapshot(scene, nodes, c, {}));
   };
-  const auto ref = run(0.125, 0.04);
+  const auto ref = run(0.125, 0.04, 0);  // shadow edges resolved to 0.125 m everywhere
   std::size_t with_diffuse = 0;
   for (double p : ref) with_diffuse += p > 0;
   ASSERT_GE(with_diffuse, 12u);
@@ -591,7 +592,7 @@ TEST(DiffuseTiles, ConvergeUnderRefinementWithShadows) {
   // default (1 m, 0.25) and beyond.
   std::vector<double> worst;
   for (auto [tile, ratio] : std::vector<std::pair<double, double>>{{4, 1}, {2, 0.5}, {1, 0.25}, {0.5, 0.1}}) {
-    const auto got = run(tile, ratio);
+    const auto got = run(tile, ratio, cfg.diffuse_shadow_ratio);
     double w = 0;
     for (std::size_t i = 0; i < ref.size(); ++i) {
       if (!(ref[i] > 0)) continue;
@@ -658,9 +659,10 @@ TEST(DiffuseTiles, ShadowedPlateMatchesRadarEquationOverTheLitPart) {
   cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
   // The bar's faces scatter too (metal, S = 1): keep the plate's paths only.
   const auto names = scene.object_names();
-  auto plate_power = [&](double tile) {
+  auto plate_power = [&](double tile, double shadow) {
     auto c = cfg;
     c.diffuse_tile_m = tile;
+    c.diffuse_shadow_ratio = shadow;
     const auto snap = tracer::trace_snapshot(scene, {node("tx", tx), node("rx", rx)}, c, {});
     double plate = 0;
     for (const auto& path : snap.pairs[0].paths)
@@ -671,9 +673,10 @@ TEST(DiffuseTiles, ShadowedPlateMatchesRadarEquationOverTheLitPart) {
                 plate, 100 * (plate / expect - 1));
     return plate / expect;
   };
-  // Shadow edges are resolved to the finest tiles: the default's 1 m
-  // against a 1 m bar's two shadows costs a few %, and it converges.
-  const double coarse = plate_power(1.0), fine = plate_power(0.125);
+  // Shadow edges are resolved to the finest tiles (here, near the plate,
+  // the default's 1 m: a few % against a 1 m bar's two shadows), and the
+  // integral converges as they shrink.
+  const double coarse = plate_power(1.0, cfg.diffuse_shadow_ratio), fine = plate_power(0.125, 0);
   EXPECT_NEAR(coarse, 1.0, 0.08);
   EXPECT_NEAR(fine, 1.0, 0.015);
   EXPECT_LT(std::fabs(fine - 1), std::fabs(coarse - 1));

@@ -73,6 +73,10 @@ struct TracerConfig {
   // bigger ones are bisected): the midpoint rule's error stays O(ratio^2).
   double diffuse_tile_m = 1.0;
   double diffuse_tile_ratio = 0.25;
+  // Tiles: where a shadow edge crosses a tile, it is refined down to tiles
+  // of this ratio to their distance, or to diffuse_tile_m (0, the default:
+  // to the leaves everywhere; far shadows then cost most of the rays).
+  double diffuse_shadow_ratio = 0;
   // First-order UTD edge diffraction on the static scene's wedges
   // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
   bool diffraction = true;

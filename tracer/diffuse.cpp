@@ -117,7 +117,7 @@ constexpr double kRootTileM = 32;
 
 DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, const std::vector<Node>& nodes,
                            const std::vector<unsigned char>& wanted, const TracerConfig& cfg, double range)
-    : scene_(scene), em_(em), nodes_(nodes), ratio_(cfg.diffuse_tile_ratio) {
+    : scene_(scene), em_(em), nodes_(nodes), ratio_(cfg.diffuse_tile_ratio), shadow_ratio_(cfg.diffuse_shadow_ratio) {
   const auto nf = static_cast<std::uint32_t>(scene.face_count(0));
   std::vector<unsigned char> rough(nf, 0);
   for (std::uint32_t f = 0; f < nf; ++f) rough[f] = em.material(scene.material(FaceRef{0, f})).scattering.s > 0;
@@ -177,7 +177,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
         return !(tfar > t0 && scene.closest_hit(x, (1.0 / r) * w, t0, tfar, hit));
       };
       const bool seen = clear(tile.centre);
-      if (child_[t] >= 0) {
+      if (child_[t] >= 0 && tile.size > shadow_ratio_ * r) {
         // Not a leaf: where a shadow edge crosses the tile (its corners,
         // pulled a tenth towards the centre, disagree with the centre), the
         // tile is refined down to where they agree, or to the leaves.

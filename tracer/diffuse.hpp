@@ -80,6 +80,7 @@ class DiffuseTiles {
   const Electromagnetics& em_;
   const std::vector<Node>& nodes_;
   double ratio_ = 0.25;
+  double shadow_ratio_ = 0;
   // Tile tree: roots of longest edge <= 32 m (or the leaf size), halved by
   // longest-edge bisection down to leaves of <= diffuse_tile_m; the two
   // children of tree_[i] are tree_[child_[i]] and tree_[child_[i] + 1].

@@ -74,6 +74,8 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (!(t.diffuse_tile_m > 0) || !std::isfinite(t.diffuse_tile_m)) bad("tracer.diffuse_tile_m must be positive");
   if (!(t.diffuse_tile_ratio > 0) || !std::isfinite(t.diffuse_tile_ratio))
     bad("tracer.diffuse_tile_ratio must be positive");
+  if (!(t.diffuse_shadow_ratio >= 0) || !std::isfinite(t.diffuse_shadow_ratio))
+    bad("tracer.diffuse_shadow_ratio must be >= 0");
   if (!std::isfinite(t.path_threshold_db)) bad("tracer.path_threshold_db must be finite (<= 0 keeps every path)");
   if (std::isnan(t.range_margin_db)) bad("tracer.range_margin_db must be a number");
   if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
