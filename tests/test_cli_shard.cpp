@@ -85,7 +85,7 @@ TEST(CliShard, RunShardsMergeIntoTheSingleProcessDatasetByteForByte) {
   const City& c = city();
   const auto ref_time = read_ds<double>(c.reference, "/frames/time_s", H5T_NATIVE_DOUBLE);
   ASSERT_EQ(ref_time.size(), 30u);
-  for (int n : {1, 3, 4}) {
+  for (int n : {1, 3, 4, 8}) {  // 8 > 6 blocks: two empty shards
     clear_sweep_outputs();
     for (int i = 0; i < n; ++i) {
       auto r = run_raysweep(run_city("--shard " + std::to_string(i) + "/" + std::to_string(n)));
@@ -93,6 +93,11 @@ TEST(CliShard, RunShardsMergeIntoTheSingleProcessDatasetByteForByte) {
       EXPECT_EQ(r.output.find("sinr"), std::string::npos) << "a shard stops after its sweep\n" << r.output;
     }
     EXPECT_FALSE(fs::exists(c.out / "dataset.h5"));
+    if (n == 8) {
+      const fs::path empty = c.out / "shards/dataset.7-of-8.h5";
+      EXPECT_EQ(json::parse(str_attr(empty, "shard"))["blocks"], json::array());
+      EXPECT_EQ(run_raysweep("validate " + empty.string()).exit_code, 0);
+    }
     if (n == 4) {
       // Interleaved: shard 1 of 4 holds blocks 1 and 5, frames 5..9 and 25..29.
       const fs::path s1 = c.out / "shards/dataset.1-of-4.h5";
@@ -126,7 +131,9 @@ TEST(CliShard, RunShardsMergeIntoTheSingleProcessDatasetByteForByte) {
     EXPECT_EQ(merge["shards"].size(), static_cast<std::size_t>(n));
   }
 
-  // The virtual merge over the last shards reads the same values without holding them.
+  // The virtual merge over the 4 shards reads the same values without holding them.
+  clear_sweep_outputs();
+  for (int i = 0; i < 4; ++i) ASSERT_EQ(run_raysweep(run_city("--shard " + std::to_string(i) + "/4")).exit_code, 0);
   auto r = run_raysweep(run_city("--merge --virtual"));
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("sinr: ray"), std::string::npos) << "SINR on the virtual dataset\n" << r.output;
