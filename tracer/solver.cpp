@@ -330,8 +330,7 @@ bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const V
 }  // namespace
 
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
-                                             const Node& to, const Edge& edge, std::uint64_t* rays,
-                                             double min_power) {
+                                             const Node& to, const Edge& edge, std::uint64_t* rays) {
   const Vec3 tx = from.position, rx = to.position;
   const double len = norm(edge.b - edge.a);
   const Vec3 wt = tx - edge.a, wr = rx - edge.a;
@@ -351,6 +350,8 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   const Vec3 s_in = (1.0 / sp) * (q - tx), s_out = (1.0 / sd) * (rx - q);
   const double sin_b = norm(cross(edge.e, s_in));
   if (sin_b < 1e-6) return std::nullopt;  // grazing along the edge
+  if (!leg_clear(scene, edge, tx, s_in, sp, false, rays) || !leg_clear(scene, edge, q, s_out, sd, true, rays))
+    return std::nullopt;
 
   const double lambda = em.wavelength();
   const double k = 2 * kPi / lambda;
@@ -380,10 +381,6 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   path.phi_r = azimuth(-s_out);
   path.doppler_hz = -(dot(s_in, -1.0 * from.velocity) + dot(s_out, to.velocity)) / lambda;
   path.interactions.push_back(Interaction{InteractionType::diffraction, edge.object, edge.material0, q});
-  // The legs' visibility last: a path too weak to keep costs no rays.
-  if (std::norm(path.a) < min_power) return std::nullopt;
-  if (!leg_clear(scene, edge, tx, s_in, sp, false, rays) || !leg_clear(scene, edge, q, s_out, sd, true, rays))
-    return std::nullopt;
   return path;
 }
 
@@ -917,13 +914,6 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     res.candidates = static_cast<std::uint32_t>(candidates[p].size() + (cfg.los ? 1 : 0));
     lap(tm.exact);
     if (!seen.empty()) {
-      // Diffracted candidates below the threshold under the strongest path
-      // so far would be dropped below anyway: their legs are not traced.
-      double floor = 0;
-      if (cfg.path_threshold_db > 0) {
-        for (const auto& path : res.paths) floor = std::max(floor, std::norm(path.a));
-        floor *= std::pow(10.0, -cfg.path_threshold_db / 10);
-      }
       const auto &ei = seen[i], &ej = seen[j];
       std::size_t x = 0, y = 0;
       while (x < ei.size() && y < ej.size()) {
@@ -931,7 +921,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         else if (ej[y] < ei[x]) ++y;
         else {
           ++res.candidates;
-          if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[ei[x]], &rays, floor))
+          if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[ei[x]], &rays))
             res.paths.push_back(std::move(*path));
           ++x;
           ++y;

@@ -135,11 +135,9 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
                                  bool* over_cap = nullptr, std::uint64_t* rays = nullptr);
 
 // The first-order diffracted path from `from` to `to` over static edge
-// `edge` (Keller's law, both sides visible), or nullopt; also nullopt when
-// its power |a|^2 is below `min_power` (its legs are then not traced).
+// `edge` (Keller's law, both sides visible), or nullopt.
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
-                                             const Node& to, const Edge& edge, std::uint64_t* rays = nullptr,
-                                             double min_power = 0);
+                                             const Node& to, const Edge& edge, std::uint64_t* rays = nullptr);
 
 // The LoS class of the direct segment and the objects blocking it.
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,
