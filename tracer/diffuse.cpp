@@ -402,17 +402,8 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
   }
   for (const Bin& B : bins) {
     if (!(B.power > 0)) continue;
-    Path path;
+    Path path = diffuse_record(B.power, B.tau, B.departure, B.arrival, B.doppler, lambda);
     const double w = 1.0 / B.power;
-    path.tau_s = B.tau * w;
-    const double phase = -2 * kPi * std::fmod(path.tau_s * kSpeedOfLight / lambda, 1.0);
-    path.a = std::polar(std::sqrt(B.power), phase);
-    const Vec3 dep = normalize(B.departure), arr = normalize(B.arrival);
-    path.theta_t = zenith(dep);
-    path.phi_t = azimuth(dep);
-    path.theta_r = zenith(arr);
-    path.phi_r = azimuth(arr);
-    path.doppler_hz = B.doppler * w;
     path.interactions.push_back(Interaction{InteractionType::diffuse, B.object, B.material, w * B.point});
     out.push_back(std::move(path));
   }

@@ -1,5 +1,7 @@
 #include "tracer/path.hpp"
 
+#include "tracer/em.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -28,6 +30,22 @@ const char* los_class_name(LosClass c) {
 double to_db(double linear_power) {
   if (linear_power == 0) return -std::numeric_limits<double>::infinity();
   return 10.0 * std::log10(linear_power);
+}
+
+Path diffuse_record(double power, double tau_sum, const Vec3& departure_sum, const Vec3& arrival_sum,
+                    double doppler_sum, double wavelength) {
+  Path path;
+  const double w = 1.0 / power;
+  path.tau_s = tau_sum * w;
+  const double phase = -2 * kPi * std::fmod(path.tau_s * kSpeedOfLight / wavelength, 1.0);
+  path.a = std::polar(std::sqrt(power), phase);
+  const Vec3 dep = normalize(departure_sum), arr = normalize(arrival_sum);
+  path.theta_t = zenith(dep);
+  path.phi_t = azimuth(dep);
+  path.theta_r = zenith(arr);
+  path.phi_r = azimuth(arr);
+  path.doppler_hz = doppler_sum * w;
+  return path;
 }
 
 PathStats path_stats(const std::vector<Path>& paths) {

@@ -46,6 +46,14 @@ struct PathStats {
 };
 PathStats path_stats(const std::vector<Path>& paths);
 
+// A diffuse record from power-weighted sums of its contributions (power,
+// power x delay, x departure and arrival directions, x Doppler): delay,
+// angles and Doppler are their means, the amplitude sqrt(power) with the
+// mean delay's carrier phase (diffuse phases are random in nature; a fixed
+// rule keeps runs reproducible). No interactions yet.
+Path diffuse_record(double power, double tau_sum, const Vec3& departure_sum, const Vec3& arrival_sum,
+                    double doppler_sum, double wavelength);
+
 // 10 log10(x), with -inf kept for zero.
 double to_db(double linear_power);
 

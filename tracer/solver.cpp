@@ -936,17 +936,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     if (ray_diffuse) {
       for (const auto& [dk, acc] : diffuse[p]) {
         if (!(acc.power > 0)) continue;
-        Path path;
+        Path path = diffuse_record(acc.power, acc.tau, acc.departure, acc.arrival, acc.doppler, lambda);
         const double w = 1.0 / acc.power;
-        path.tau_s = acc.tau * w;
-        const double phase = -2 * kPi * std::fmod(path.tau_s * kSpeedOfLight / lambda, 1.0);
-        path.a = std::polar(std::sqrt(acc.power), phase);
-        const Vec3 dep = normalize(acc.departure), arr = normalize(acc.arrival);
-        path.theta_t = zenith(dep);
-        path.phi_t = azimuth(dep);
-        path.theta_r = zenith(arr);
-        path.phi_r = azimuth(arr);
-        path.doppler_hz = acc.doppler * w;
         for (int q = 0; q + 1 < acc.n; ++q)
           path.interactions.push_back(Interaction{InteractionType::specular, scene.object(acc.faces[q]),
                                                   scene.material(acc.faces[q]), acc.prefix[q]});
