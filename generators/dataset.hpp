@@ -55,6 +55,7 @@ struct LinkRecord {
   std::uint32_t paths_below_threshold = 0;  // found but dropped: tracer.path_threshold_db below the strongest
   std::uint8_t los_class_fresnel = 0;  // the label by the first Fresnel zone (tracer/fresnel.hpp)
   float fresnel_clearance = 1;         // worst obstacle's h / r1 (negative: crossed), capped at 1
+  float vehicle_loss_db = 0;           // vehicles' knife-edge loss on the direct path (>= 0)
 };
 
 struct PathRecord {

@@ -164,6 +164,7 @@ struct DatasetReader::Impl {
     const auto l_below = read<std::uint32_t>("/links/paths_below_threshold", u32, a.links, nl);
     const auto l_losf = read<std::uint8_t>("/links/los_class_fresnel", u8, a.links, nl);
     const auto l_clear = read<float>("/links/fresnel_clearance", f32, a.links, nl);
+    const auto l_vloss = read<float>("/links/vehicle_loss_db", f32, a.links, nl);
 
     const auto p_a = read<std::complex<float>>("/paths/a", types.mem(hdf5::Dtype::c64), a.paths, np);
     const auto p_tau = read<double>("/paths/tau_s", H5T_NATIVE_DOUBLE, a.paths, np);
@@ -194,7 +195,7 @@ struct DatasetReader::Impl {
       for (std::uint32_t j = 0; j < link_count[f]; ++j, ++l) {
         if (l_po[l] != po) fail("/links/path_offset: row " + std::to_string(a.links + l) + " is not the running sum");
         fr.links.push_back({l_tx[l], l_rx[l], l_los[l], l_flags[l], l_block[l], l_gc[l], l_gi[l], l_fd[l], l_rms[l],
-                            l_pc[l], l_below[l], l_losf[l], l_clear[l]});
+                            l_pc[l], l_below[l], l_losf[l], l_clear[l], l_vloss[l]});
         for (std::uint32_t q = 0; q < l_pc[l]; ++q, ++p, ++po) {
           if (p >= np || p_io[p] != io)
             fail("/paths/interaction_offset: row " + std::to_string(a.paths + p) + " is not the running sum");

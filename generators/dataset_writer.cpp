@@ -32,7 +32,7 @@ struct DatasetWriter::Impl {
   Column *f_time, *f_node_offset, *f_node_count, *f_link_offset, *f_link_count;
   Column *s_node, *s_position, *s_velocity, *s_heading;
   Column *l_frame, *l_tx, *l_rx, *l_los, *l_flags, *l_blockers, *l_gain_c, *l_gain_i, *l_first_delay, *l_rms,
-      *l_path_count, *l_los_fresnel, *l_clearance, *l_path_offset, *l_below;
+      *l_path_count, *l_los_fresnel, *l_clearance, *l_vehicle_loss, *l_path_offset, *l_below;
   Column *p_a, *p_tau, *p_aod, *p_aoa, *p_doppler, *p_icount, *p_ioffset;
   Column *i_type, *i_object, *i_point;
   Column* c_h = nullptr;
@@ -85,6 +85,7 @@ struct DatasetWriter::Impl {
     l_below = column("links", "paths_below_threshold", Dtype::u32);
     l_los_fresnel = column("links", "los_class_fresnel", Dtype::u8);
     l_clearance = column("links", "fresnel_clearance", Dtype::f32);
+    l_vehicle_loss = column("links", "vehicle_loss_db", Dtype::f32);
     l_path_offset = column("links", "path_offset", Dtype::u64);
 
     p_a = column("paths", "a", Dtype::c64);
@@ -135,6 +136,8 @@ struct DatasetWriter::Impl {
       if (l.los_class_fresnel > 2)
         bad(at + ": los_class_fresnel " + std::to_string(l.los_class_fresnel) + " not in 0..2");
       if (!(l.fresnel_clearance <= 1)) bad(at + ": fresnel_clearance above 1 or not a number");
+      if (!(l.vehicle_loss_db >= 0) || !std::isfinite(l.vehicle_loss_db))
+        bad(at + ": vehicle_loss_db negative or not finite");
       if (l.flags & ~(kLinkCached | kLinkOutOfRange)) bad(at + ": unknown flag bits");
       if ((l.flags & kLinkOutOfRange) && l.path_count > 0) bad(at + ": out-of-range link with paths");
       paths += l.path_count;
@@ -196,6 +199,7 @@ struct DatasetWriter::Impl {
       l_below->put(l.paths_below_threshold);
       l_los_fresnel->put(l.los_class_fresnel);
       l_clearance->put(l.fresnel_clearance);
+      l_vehicle_loss->put(l.vehicle_loss_db);
       l_path_offset->put(path_offset);
       path_offset += l.path_count;
     }

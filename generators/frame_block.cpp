@@ -20,7 +20,7 @@ namespace {
 
 constexpr std::size_t kMagicBytes = 8;
 constexpr std::uint64_t kNodeBytes = 4 + 3 * 8 + 4 * 4;                      // 44
-constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 4;  // 45
+constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 4 + 4;  // 49
 constexpr std::uint64_t kPathBytes = 4 + 4 + 8 + 4 * 4 + 4 + 1;              // 37
 constexpr std::uint64_t kInteractionBytes = 1 + 4 + 3 * 4;                   // 17
 constexpr std::uint64_t kCfrBytes = 8;
@@ -119,6 +119,7 @@ void write_frame_block(const std::filesystem::path& path, const std::vector<Fram
       o.u32(l.paths_below_threshold);
       o.u8(l.los_class_fresnel);
       o.f32(l.fresnel_clearance);
+      o.f32(l.vehicle_loss_db);
     }
     for (const auto& p : f.paths) {
       o.f32(p.a.real()), o.f32(p.a.imag());
@@ -210,6 +211,7 @@ std::vector<FrameRecord> read_frame_block(const std::filesystem::path& path) {
       l.paths_below_threshold = r.u32();
       l.los_class_fresnel = r.u8();
       l.fresnel_clearance = r.f32();
+      l.vehicle_loss_db = r.f32();
     }
     f.paths.resize(r.count(n_paths, kPathBytes, "paths"));
     for (auto& q : f.paths) {

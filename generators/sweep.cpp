@@ -232,6 +232,7 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
     L.paths_below_threshold = res.dropped_threshold;
     L.los_class_fresnel = static_cast<std::uint8_t>(res.fresnel_class);
     L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
+    L.vehicle_loss_db = static_cast<float>(res.vehicle_loss_db);
     if (res.out_of_range) L.flags |= kLinkOutOfRange;
     for (const auto& path : res.paths) {
       if (std::norm(path.a) > strongest) {

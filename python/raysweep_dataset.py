@@ -30,7 +30,8 @@ FLAG_OUT_OF_RANGE = 2
 LINK_COLUMNS = ("frame", "tx", "rx", "los_class", "flags", "blocker_count", "gain_coherent_db",
                 "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset",
                 "paths_below_threshold",  # since schema 1.1.0
-                "los_class_fresnel", "fresnel_clearance")  # since schema 1.2.0
+                "los_class_fresnel", "fresnel_clearance",  # since schema 1.2.0
+                "vehicle_loss_db")  # since schema 1.3.0
 
 
 def _text(value):

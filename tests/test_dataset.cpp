@@ -81,6 +81,7 @@ struct Builder {
     l.paths_below_threshold = (flags & kLinkOutOfRange) ? 0 : 7 * li + 1;
     l.los_class_fresnel = static_cast<std::uint8_t>(std::max<int>(los, li % 3));
     l.fresnel_clearance = 1.0f - 0.37f * static_cast<float>(li);
+    l.vehicle_loss_db = 2.5f * static_cast<float>(li % 4);
     if (path_objects.empty()) {
       l.gain_coherent_db = kNoGain;
       l.gain_incoherent_db = kNoGain;
@@ -324,6 +325,7 @@ TEST(Dataset, RoundTripEveryField) {
   const auto below = read_ds<std::uint32_t>(file, "/links/paths_below_threshold", H5T_NATIVE_UINT32);
   const auto zone = read_ds<std::uint8_t>(file, "/links/los_class_fresnel", H5T_NATIVE_UINT8);
   const auto clearance = read_ds<float>(file, "/links/fresnel_clearance", H5T_NATIVE_FLOAT);
+  const auto vehicle_loss = read_ds<float>(file, "/links/vehicle_loss_db", H5T_NATIVE_FLOAT);
   ASSERT_EQ(tx.size(), 6u);
   EXPECT_EQ(frame, x.link_frame);
   EXPECT_EQ(frame, (std::vector<std::uint32_t>{0, 0, 0, 1, 1, 2}));
@@ -345,6 +347,7 @@ TEST(Dataset, RoundTripEveryField) {
     EXPECT_EQ(below[i], l.paths_below_threshold);
     EXPECT_EQ(zone[i], l.los_class_fresnel);
     EXPECT_EQ(clearance[i], l.fresnel_clearance);
+    EXPECT_EQ(vehicle_loss[i], l.vehicle_loss_db);
   }
   EXPECT_TRUE(std::isinf(gc[2]) && gc[2] < 0);
   EXPECT_EQ(flags[2], kLinkOutOfRange);
@@ -584,6 +587,16 @@ TEST(Dataset, CorruptFilesAreRejected) {
     set_str_attr(p, "schema_version", "1.1.0");
     EXPECT_TRUE(validate_dataset(p.string()).empty()) << joined(validate_dataset(p.string()));
   }
+  {  // (b4) the vehicles' knife-edge loss, added in 1.3.0: a 1.2.0 file without it validates
+    const fs::path p = copy("novehicleloss.h5");
+    {
+      H5 f{H5Fopen(p.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+      ASSERT_GE(H5Ldelete(f.id, "/links/vehicle_loss_db", H5P_DEFAULT), 0);
+    }
+    EXPECT_TRUE(mentions(validate_dataset(p.string()), "/links/vehicle_loss_db"));
+    set_str_attr(p, "schema_version", "1.2.0");
+    EXPECT_TRUE(validate_dataset(p.string()).empty()) << joined(validate_dataset(p.string()));
+  }
   {  // (c) an unsupported major version
     const fs::path p = copy("v2.h5");
     set_str_attr(p, "schema_version", "2.0.0");
@@ -711,6 +724,7 @@ void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecor
       EXPECT_EQ(p.paths_below_threshold, q.paths_below_threshold);
       EXPECT_EQ(p.los_class_fresnel, q.los_class_fresnel);
       EXPECT_EQ(bits(p.fresnel_clearance), bits(q.fresnel_clearance));
+      EXPECT_EQ(bits(p.vehicle_loss_db), bits(q.vehicle_loss_db));
     }
     ASSERT_EQ(x.paths.size(), y.paths.size());
     for (std::size_t i = 0; i < x.paths.size(); ++i) {
@@ -759,7 +773,7 @@ TEST(FrameBlock, RoundTripIsExact) {
   write_frame_block(p, frames);
   EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
   const std::string bytes = read_bytes(p);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK3\n"));
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
   const auto back = read_frame_block(p);
   expect_same(frames, back);
   EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));
