@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "generators/dataset_reader.hpp"
+#include "generators/dataset_tables.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/hdf5_columns.hpp"
 #include "meshkit/errors.hpp"
@@ -176,23 +177,7 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   }
 
   cf.flush_all();
-  std::vector<const char*> ids, vclasses, vtypes, names;
-  std::vector<std::uint8_t> kinds;
-  std::vector<float> dims;
-  for (const auto& n : nodes) {
-    ids.push_back(n.id.c_str());
-    vclasses.push_back(n.vclass.c_str());
-    vtypes.push_back(n.vtype.c_str());
-    kinds.push_back(static_cast<std::uint8_t>(n.kind));
-    dims.insert(dims.end(), {n.length_m, n.width_m, n.height_m});
-  }
-  for (const auto& o : objects) names.push_back(o.c_str());
-  cf.table("nodes", "id", Dtype::str, nodes.size(), ids.data());
-  cf.table("nodes", "kind", Dtype::u8, nodes.size(), kinds.data());
-  cf.table("nodes", "vclass", Dtype::str, nodes.size(), vclasses.data());
-  cf.table("nodes", "vtype", Dtype::str, nodes.size(), vtypes.data());
-  cf.table("nodes", "dimensions", Dtype::f32, nodes.size(), dims.data());
-  cf.table("objects", "name", Dtype::str, objects.size(), names.data());
+  write_node_and_object_tables(cf, nodes, objects);
   cf.attr("", "frame_count", std::uint64_t{frames});
   cf.attr("", "node_count", std::uint64_t{nodes.size()});
   cf.attr("", "link_count", std::uint64_t{total.links});

@@ -5,6 +5,8 @@
 // dataset and checks at creation that the schema's dtype is the one it writes.
 #include "generators/dataset_writer.hpp"
 
+#include "generators/dataset_tables.hpp"
+
 #include <hdf5.h>
 
 #include <algorithm>
@@ -252,23 +254,7 @@ struct DatasetWriter::Impl {
                                   " but the object table has " + std::to_string(objects.size()) + " objects");
     flush_all();
 
-    std::vector<const char*> ids, vclasses, vtypes, names;
-    std::vector<std::uint8_t> kinds;
-    std::vector<float> dims;
-    for (const auto& n : nodes) {
-      ids.push_back(n.id.c_str());
-      vclasses.push_back(n.vclass.c_str());
-      vtypes.push_back(n.vtype.c_str());
-      kinds.push_back(static_cast<std::uint8_t>(n.kind));
-      dims.insert(dims.end(), {n.length_m, n.width_m, n.height_m});
-    }
-    for (const auto& o : objects) names.push_back(o.c_str());
-    table("nodes", "id", Dtype::str, nodes.size(), ids.data());
-    table("nodes", "kind", Dtype::u8, nodes.size(), kinds.data());
-    table("nodes", "vclass", Dtype::str, nodes.size(), vclasses.data());
-    table("nodes", "vtype", Dtype::str, nodes.size(), vtypes.data());
-    table("nodes", "dimensions", Dtype::f32, nodes.size(), dims.data());
-    table("objects", "name", Dtype::str, objects.size(), names.data());
+    write_node_and_object_tables(out, nodes, objects);
 
     out.attr("", "frame_count", std::uint64_t{frame_count});
     out.attr("", "node_count", std::uint64_t{nodes.size()});
