@@ -6,8 +6,8 @@
 #include <memory>
 
 #include "generators/dataset_reader.hpp"
-#include "generators/dataset_tables.hpp"
 #include "generators/dataset_schema.hpp"
+#include "generators/dataset_tables.hpp"
 #include "generators/hdf5_columns.hpp"
 #include "meshkit/errors.hpp"
 
