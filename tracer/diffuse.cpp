@@ -47,14 +47,9 @@ double ipow(double x, int n) {
   return r;
 }
 
-Vec3 te_basis(const Vec3& k, const Vec3& n) {
-  const Vec3 s = cross(k, n);
-  const double l = norm(s);
-  return l > 1e-12 ? (1.0 / l) * s : any_perpendicular(k);
-}
 
-}  // namespace
-
+// Static faces for which `wanted[face]` holds, cut into tiles of longest
+// edge <= tile_m; ordered by face.
 std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::vector<unsigned char>& wanted,
                                            double tile_m) {
   std::vector<SurfaceTile> tiles;
@@ -81,6 +76,8 @@ std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::v
   }
   return tiles;
 }
+
+}  // namespace
 
 // A tile as node `node` sees it: the incident geometry and the field a
 // smooth surface would reflect there (antenna pattern times the slab's
@@ -294,13 +291,6 @@ struct Bin {
 };
 
 }  // namespace
-
-double DiffuseTiles::term(std::uint32_t a, std::uint32_t b, const SurfaceTile& tile) const {
-  View va, vb;
-  if (!view(a, tile.centre, tile.face, va) || !view(b, tile.centre, tile.face, vb)) return 0;
-  if (dot(va.n_front, vb.n_front) <= 0) return 0;
-  return one_way(va, vb, tile.area, em_.wavelength());
-}
 
 void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const {
   const double lambda = em_.wavelength();

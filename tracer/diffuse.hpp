@@ -43,11 +43,6 @@ struct SurfaceTile {
   std::uint32_t face = 0;  // static face
 };
 
-// Static faces for which `wanted[face]` holds, cut into tiles of longest
-// edge <= tile_m; ordered by face.
-std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::vector<unsigned char>& wanted,
-                                           double tile_m);
-
 class DiffuseTiles {
  public:
   // The tile tree of the scattering static faces, and each wanted node's
@@ -65,10 +60,6 @@ class DiffuseTiles {
   std::size_t tile_count() const { return leaves_; }  // finest tiles (longest edge <= diffuse_tile_m)
   std::uint64_t rays() const { return rays_; }
   std::uint64_t views() const;  // (node, tile) visibility decisions
-
-  // The one-way term of a tile seen from `a` (incident) towards `b`, power
-  // only, visibility not tested: for tests against closed forms.
-  double term(std::uint32_t a, std::uint32_t b, const SurfaceTile& tile) const;
 
   struct View;   // a tile as one node sees it
   struct Sight;  // one node's visibility cut through the tile tree

@@ -176,4 +176,12 @@ Polarization parse_polarization(const std::string& s);
 // perpendicular vector is used.
 Vec3 antenna_field(const AntennaSpec& antenna, const Vec3& dir, const Vec3& forward);
 
+// TE basis vector for direction k on a surface with normal n (k x n, any
+// perpendicular of k at normal incidence).
+inline Vec3 te_basis(const Vec3& k, const Vec3& n) {
+  const Vec3 s = cross(k, n);
+  const double l = norm(s);
+  return l > 1e-12 ? (1.0 / l) * s : any_perpendicular(k);
+}
+
 }  // namespace raysweep::tracer

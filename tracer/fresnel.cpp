@@ -251,7 +251,7 @@ bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& 
 }
 
 double knife_edge_loss_db(double v) {
-  if (v <= -0.78) return 0;
+  if (v <= kKnifeEdgeOnset) return 0;
   const double x = v - 0.1;
   return 6.9 + 20 * std::log10(std::sqrt(x * x + 1) + x);
 }
@@ -284,7 +284,7 @@ KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, d
   };
   KnifeEdges out;
   const Edge m = main_edge(a, b, -1);
-  if (m.k < 0 || m.v <= -0.78) return out;
+  if (m.k < 0 || m.v <= kKnifeEdgeOnset) return out;
   out.v_main = m.v;
   out.main_vehicle = m.k;
   out.loss_db = knife_edge_loss_db(m.v);

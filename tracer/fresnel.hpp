@@ -31,7 +31,8 @@ struct KnifeEdges {
   int main_vehicle = -1;
 };
 
-// ITU-R P.526's single knife-edge loss J(v) in dB (0 for v <= -0.78).
+// ITU-R P.526's single knife-edge loss J(v) in dB, 0 for v <= kKnifeEdgeOnset.
+constexpr double kKnifeEdgeOnset = -0.78;
 double knife_edge_loss_db(double v);
 
 // An obstacle obstructs the zone when its clearance is below this fraction

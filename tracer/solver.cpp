@@ -32,13 +32,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// TE basis vector for direction k on a surface with normal n.
-Vec3 te_basis(const Vec3& k, const Vec3& n) {
-  const Vec3 s = cross(k, n);
-  const double l = norm(s);
-  return l > 1e-12 ? (1.0 / l) * s : any_perpendicular(k);
-}
-
 // Face sequence of one shoot-and-bounce ray, without heap allocation.
 struct Sequence {
   std::array<FaceRef, kMaxDepth> faces{};
@@ -709,8 +702,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   std::vector<std::uint32_t> sources;
   std::vector<unsigned char> is_source(n, 0);
   std::vector<unsigned char> in_range(pairs.size(), 1);
-  // Diffuse scattering: by surface tiles (default), or gathered from the
-  // shoot-and-bounce rays' hits.
+  // Diffuse scattering: gathered from the shoot-and-bounce rays' hits
+  // (default), or integrated over surface tiles.
   const bool ray_diffuse =
       cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration == DiffuseIntegration::rays;
   const bool tile_diffuse =
@@ -775,7 +768,6 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       }
     snap.stats.time.image_search = seconds_since(t_image);
   }
-  const bool sbr_diffuse = ray_diffuse;
   if (cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::exhaustive) {
     std::vector<std::vector<FaceRef>> all;
     std::vector<FaceRef> current;
@@ -783,7 +775,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     for (std::size_t p = 0; p < pairs.size(); ++p)
       if (in_range[p]) candidates[p] = all;
   }
-  if ((sbr_specular || sbr_diffuse) && n > 1) {
+  if ((sbr_specular || ray_diffuse) && n > 1) {
     const auto t_shoot = std::chrono::steady_clock::now();
     const auto lattice = fibonacci_sphere(cfg.rays_per_source);
     const std::size_t chunk = 256;
@@ -893,7 +885,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       // block is traced through them and attenuated; when it also crosses
       // their windows, the stronger of the two is kept.
       if (cfg.vehicle_diffraction && res.los_class != LosClass::NLOS &&
-          zone.vehicle_clearance < 0.78 / std::sqrt(2.0)) {
+          -std::sqrt(2.0) * zone.vehicle_clearance > kKnifeEdgeOnset) {
         const auto ke = obstacles.vehicle_knife_edges(nodes[i].position, nodes[j].position, lambda,
                                                       nodes[i].vehicle, nodes[j].vehicle);
         if (ke.loss_db > 0) {

@@ -75,7 +75,7 @@ struct SnapshotStats {
     double edges = 0;         // wall: per-node edge visibility pre-pass (diffraction)
     double pairs = 0;         // wall: the per-pair loop below, in total
     double los = 0;           // thread-s: geometric LoS class and the Fresnel-zone label
-    double exact = 0;         // thread-s: exact paths of every candidate sequence
+    double exact = 0;         // thread-s: exact paths of every candidate sequence, the vehicles' knife edges
     double diffraction = 0;   // thread-s: diffracted paths
     double diffuse = 0;       // thread-s: diffuse paths integrated over the tiles both ends see
     double assemble = 0;      // thread-s: diffuse records, de-duplication, threshold
