@@ -306,18 +306,16 @@ double edge_angle(const Edge& e, const Vec3& v) {
 }
 
 // The leg a -> b (length len along unit dir) is free of everything but the
-// two faces of the edge it starts or ends on.
-bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const Vec3& dir, double len, bool from_edge,
+// two faces of the edge it starts or ends on. Both ends are trimmed by the
+// float slack: at the edge point other faces meeting the edge (a third
+// face at a corner) touch the leg without blocking it.
+bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const Vec3& dir, double len,
                std::uint64_t* rays) {
-  std::vector<Hit> hits;
-  const double t0 = from_edge ? 0 : scene.slack(a, 0) * 0.1;
-  const double t1 = from_edge ? len - scene.slack(a, len) * 0.1 : len;
+  const double t0 = scene.slack(a, 0) * 0.1;
+  const double t1 = len - scene.slack(a, len) * 0.1;
   if (t1 <= t0) return false;
-  scene.all_hits(a, dir, t0, t1, hits, 8);
-  if (rays) *rays += hits.size() + 1;
-  for (const auto& h : hits)
-    if (h.face != edge.face0 && h.face != edge.face_n) return false;
-  return hits.size() < 8;
+  if (rays) ++*rays;
+  return !scene.occluded(a, dir, t0, t1, &edge.face0, &edge.face_n);
 }
 
 }  // namespace
@@ -343,7 +341,7 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   const Vec3 s_in = (1.0 / sp) * (q - tx), s_out = (1.0 / sd) * (rx - q);
   const double sin_b = norm(cross(edge.e, s_in));
   if (sin_b < 1e-6) return std::nullopt;  // grazing along the edge
-  if (!leg_clear(scene, edge, tx, s_in, sp, false, rays) || !leg_clear(scene, edge, q, s_out, sd, true, rays))
+  if (!leg_clear(scene, edge, tx, s_in, sp, rays) || !leg_clear(scene, edge, q, s_out, sd, rays))
     return std::nullopt;
 
   const double lambda = em.wavelength();
@@ -548,9 +546,8 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const Vec3 ks = (1.0 / rs) * w;
           const double f = scattering_pattern(sc, st.d, ks, plane.normal);
           if (!(f > 0)) continue;
-          Hit block;
           ++rays;
-          if (scene.closest_hit(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, block, &hit.face)) continue;
+          if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
           // Transverse part of the reflected field towards the receiver.
           const cdouble along = cdot(e_ref, ks);
           const CVec3 et{e_ref[0] - along * ks[0], e_ref[1] - along * ks[1], e_ref[2] - along * ks[2]};

@@ -133,6 +133,38 @@ struct TraceScene::Impl {
   // Step that clears float rounding of a point at distance `t` along a ray
   // whose origin is `o_local` away from the Embree origin.
   static double step(double o_local, double t) { return std::max(1e-4, 4e-7 * (o_local + t)); }
+
+  // One traversal instead of one per crossing: an intersection-context
+  // filter sees every candidate hit. It either records it and rejects it
+  // (all_hits: the traversal goes on to tfar), or rejects only the faces a
+  // query ignores (occluded: the first other hit ends the traversal).
+  struct RawHit {
+    float t;
+    FaceRef face;
+  };
+  struct FilterContext {
+    RTCIntersectContext ctx;  // first member: Embree hands back its address
+    const Impl* impl = nullptr;
+    const std::vector<VehiclePose>* vehicles = nullptr;
+    std::vector<RawHit>* collect = nullptr;
+    const FaceRef* ignore[2] = {nullptr, nullptr};
+  };
+  static void filter(const RTCFilterFunctionNArguments* args) {
+    auto* fc = reinterpret_cast<FilterContext*>(args->context);
+    for (unsigned i = 0; i < args->N; ++i) {
+      if (args->valid[i] != -1) continue;
+      const std::uint32_t inst = RTCHitN_instID(args->hit, args->N, i, 0);
+      const std::uint32_t prim = RTCHitN_primID(args->hit, args->N, i);
+      const Shape& s = inst == 0 ? fc->impl->world : *fc->impl->models[(*fc->vehicles)[inst - 1].model];
+      const FaceRef face{inst, s.tri_face[prim]};
+      if (fc->collect) {
+        fc->collect->push_back(RawHit{RTCRayN_tfar(args->ray, args->N, i), face});
+        args->valid[i] = 0;
+      } else if ((fc->ignore[0] && face == *fc->ignore[0]) || (fc->ignore[1] && face == *fc->ignore[1])) {
+        args->valid[i] = 0;
+      }
+    }
+  }
 };
 
 static void build_normal_index(TraceScene::Shape& s) {
@@ -277,7 +309,7 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
   build_normal_index(s);
 
   s.scene = rtcNewScene(device);
-  rtcSetSceneFlags(s.scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneFlags(s.scene, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
   rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_HIGH);
   if (!s.triangles.empty()) {
     RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -449,7 +481,8 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   }
 
   d.top = rtcNewScene(d.device);
-  rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST));
+  rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST |
+                                                     RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
   rtcSetSceneBuildQuality(d.top, RTC_BUILD_QUALITY_LOW);
   RTCGeometry inst = rtcNewGeometry(d.device, RTC_GEOMETRY_TYPE_INSTANCE);
   rtcSetGeometryInstancedScene(inst, d.world.scene);
@@ -586,14 +619,52 @@ bool TraceScene::closest_hit(const Vec3& origin, const Vec3& dir, double tnear, 
 bool TraceScene::all_hits(const Vec3& origin, const Vec3& dir, double tnear, double tfar, std::vector<Hit>& hits,
                           std::size_t max_hits, const FaceRef* skip) const {
   hits.clear();
-  const double olen = norm(origin - impl_->origin);
-  Hit h;
-  while (tnear < tfar && closest_hit(origin, dir, tnear, tfar, h, skip)) {
+  if (!(tnear < tfar)) return true;
+  const auto& d = *impl_;
+  const Vec3 o = origin - d.origin;
+  const double olen = norm(o);
+  thread_local std::vector<Impl::RawHit> raw;
+  raw.clear();
+  Impl::FilterContext fc;
+  rtcInitIntersectContext(&fc.ctx);
+  fc.ctx.filter = &Impl::filter;
+  fc.impl = &d;
+  fc.vehicles = &vehicles_;
+  fc.collect = &raw;
+  RTCRayHit rh = make_ray(o, dir, tnear, tfar);
+  rtcIntersect1(d.top, &fc.ctx, &rh);
+  std::sort(raw.begin(), raw.end(), [](const Impl::RawHit& a, const Impl::RawHit& b) {
+    return a.t != b.t ? a.t < b.t : a.face < b.face;
+  });
+  // Crossings as a walk from hit to hit would list them: a hit within
+  // float rounding of the previous one (the same crossing seen on two
+  // triangles, or a second face at the same point) is one crossing; the
+  // face the ray leaves is stepped over.
+  double cursor = tnear;
+  for (const auto& r : raw) {
+    if (r.t < cursor) continue;
+    cursor = r.t + Impl::step(olen, r.t);
+    if (skip && r.face == *skip) continue;
     if (hits.size() >= max_hits) return false;
-    hits.push_back(h);
-    tnear = h.t + Impl::step(olen, h.t);
+    hits.push_back(Hit{r.t, r.face});
   }
   return true;
+}
+
+bool TraceScene::occluded(const Vec3& origin, const Vec3& dir, double tnear, double tfar, const FaceRef* ignore0,
+                          const FaceRef* ignore1) const {
+  if (!(tnear < tfar)) return false;
+  const auto& d = *impl_;
+  Impl::FilterContext fc;
+  rtcInitIntersectContext(&fc.ctx);
+  fc.ctx.filter = (ignore0 || ignore1) ? &Impl::filter : nullptr;
+  fc.impl = &d;
+  fc.vehicles = &vehicles_;
+  fc.ignore[0] = ignore0;
+  fc.ignore[1] = ignore1;
+  RTCRayHit rh = make_ray(origin - d.origin, dir, tnear, tfar);
+  rtcOccluded1(d.top, &fc.ctx, &rh.ray);
+  return rh.ray.tfar < 0;
 }
 
 double TraceScene::slack(const Vec3& p, double t) const {

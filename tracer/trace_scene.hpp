@@ -96,6 +96,10 @@ class TraceScene {
   // (returns false then).
   bool all_hits(const Vec3& origin, const Vec3& dir, double tnear, double tfar, std::vector<Hit>& hits,
                 std::size_t max_hits, const FaceRef* skip = nullptr) const;
+  // Whether anything but the faces `ignore0` / `ignore1` lies on origin +
+  // t dir for t in (tnear, tfar): a shadow ray, ended by the first hit found.
+  bool occluded(const Vec3& origin, const Vec3& dir, double tnear, double tfar, const FaceRef* ignore0 = nullptr,
+                const FaceRef* ignore1 = nullptr) const;
 
   // Distance that absorbs Embree's float rounding for a hit at distance t
   // from p: Embree's frame is centred on the scene, so it depends on p's
