@@ -133,20 +133,29 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   }
   if (blocked_t < 0) return best;
   // Crossed: the shortest shift that clears the outline (every triangle),
-  // over 32 directions.
-  std::vector<std::array<P2, 3>> outline;
+  // over 32 directions. Exact pruning: triangles in decreasing order of
+  // their farthest vertex; a direction stops once no further triangle can
+  // push its exit out, or once it cannot beat the best direction.
+  std::vector<std::pair<double, std::array<P2, 3>>> outline;
   for (const auto& tri : tris) {
     std::array<P2, 3> q;
     std::array<double, 3> t;
-    if (project(tri, q, t)) outline.push_back(q);
+    if (!project(tri, q, t)) continue;
+    double reach = 0;
+    for (const P2& v : q) reach = std::max(reach, dot2(v, v));
+    outline.emplace_back(std::sqrt(reach), q);
   }
+  std::sort(outline.begin(), outline.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
   double depth = 1e300;
   P2 best_dir{0, 1};
   for (int k = 0; k < 32; ++k) {
     const double phi = 2 * kPi * k / 32;
     const P2 dir{std::cos(phi), std::sin(phi)};
     double out = 0;
-    for (const auto& q : outline) out = std::max(out, exit_along(q[0], q[1], q[2], dir));
+    for (const auto& [reach, q] : outline) {
+      if (reach <= out || out >= depth) break;
+      out = std::max(out, exit_along(q[0], q[1], q[2], dir));
+    }
     if (out < depth) {
       depth = out;
       best_dir = dir;
