@@ -41,12 +41,6 @@ SurfaceTile make_tile(const std::array<Vec3, 3>& t, std::uint32_t face) {
   return s;
 }
 
-double ipow(double x, int n) {
-  double r = 1;
-  for (int i = 0; i < n; ++i) r *= x;
-  return r;
-}
-
 
 // Static faces for which `wanted[face]` holds, cut into tiles of longest
 // edge <= tile_m; ordered by face.
@@ -95,7 +89,7 @@ struct DiffuseTiles::View {
   CVec3 e_ref{};              // smoothly reflected field
   double e_ref2 = 0;          // |e_ref|^2
   double cos_i = 0;
-  double inv_norm = 0;        // lobe normalisation at this incidence
+  ScatteringLobeAt lobe;       // the scattering pattern at this incidence
   const Scattering* sc = nullptr;
   const Node* node = nullptr;
 };
@@ -229,17 +223,7 @@ bool DiffuseTiles::view(std::uint32_t node, const Vec3& centre, std::uint32_t fa
   const cdouble a_te = c.r.te * dot(v.field, es), a_tm = c.r.tm * dot(v.field, ep_in);
   for (int q = 0; q < 3; ++q) v.e_ref[q] = a_te * es[q] + a_tm * ep_out[q];
   v.e_ref2 = std::norm(v.e_ref[0]) + std::norm(v.e_ref[1]) + std::norm(v.e_ref[2]);
-  const Scattering& sc = *v.sc;
-  if (sc.lobe == ScatteringLobe::lambertian) {
-    v.inv_norm = 1 / kPi;
-  } else {
-    const double theta_i = std::acos(std::clamp(v.cos_i, 0.0, 1.0));
-    const double n = sc.lobe == ScatteringLobe::directive
-                         ? lobe_integral(sc.alpha_r, theta_i)
-                         : sc.lambda_r * lobe_integral(sc.alpha_r, theta_i) +
-                               (1 - sc.lambda_r) * lobe_integral(sc.alpha_i, theta_i);
-    v.inv_norm = 1 / n;
-  }
+  v.lobe = ScatteringLobeAt(*v.sc, v.k, pl.normal);
   return true;
 }
 
@@ -253,18 +237,7 @@ double one_way(const V& a, const V& b, double area, double lambda) {
   const double cos_s = dot(ks, a.n_front);
   if (!(cos_s > 0)) return 0;
   const Scattering& sc = *a.sc;
-  double f;
-  if (sc.lobe == ScatteringLobe::lambertian) {
-    f = cos_s * a.inv_norm;
-  } else {
-    const double lobe_r = ipow((1 + std::clamp(dot(ks, a.spec), -1.0, 1.0)) / 2, sc.alpha_r);
-    if (sc.lobe == ScatteringLobe::directive) {
-      f = lobe_r * a.inv_norm;
-    } else {
-      const double lobe_i = ipow((1 + std::clamp(-dot(ks, a.k), -1.0, 1.0)) / 2, sc.alpha_i);
-      f = (sc.lambda_r * lobe_r + (1 - sc.lambda_r) * lobe_i) * a.inv_norm;
-    }
-  }
+  const double f = a.lobe(ks);
   if (!(f > 0)) return 0;
   // The reflected field's part transverse to ks, co- and cross-polarised
   // against the receive pattern.

@@ -289,12 +289,22 @@ Scattering default_scattering(const std::string& name) {
   return sc;
 }
 
-double lobe_integral(int alpha, double theta) {
+namespace {
+
+double ipow(double x, int n) {
+  double r = 1;
+  for (; n > 0; n >>= 1, x *= x)
+    if (n & 1) r *= x;
+  return r;
+}
+
+// lobe_integral with theta given by its cosine.
+double lobe_integral_cos(int alpha, double ct) {
   // ((1 + cos psi)/2)^alpha = 2^-alpha sum_j C(alpha, j) cos^j psi, and the
   // hemisphere integral of cos^j psi is 2 pi / (j + 1) for even j and
   // 2 pi / (j + 1) cos(theta) sum_{w <= (j-1)/2} C(2w, w) sin^2w(theta) / 4^w
   // for odd j (Degli-Esposti et al. 2007, eq. 9).
-  const double ct = std::cos(theta), st2 = std::sin(theta) * std::sin(theta);
+  const double st2 = std::max(0.0, 1 - ct * ct);
   double sum = 0, binom = 1;  // C(alpha, j)
   for (int j = 0; j <= alpha; ++j) {
     double ij = 2 * kPi / (j + 1);
@@ -310,25 +320,38 @@ double lobe_integral(int alpha, double theta) {
     sum += binom * ij;
     binom = binom * (alpha - j) / (j + 1.0);
   }
-  return sum / std::pow(2.0, alpha);
+  return sum / ipow(2.0, alpha);
+}
+
+}  // namespace
+
+double lobe_integral(int alpha, double theta) { return lobe_integral_cos(alpha, std::cos(theta)); }
+
+ScatteringLobeAt::ScatteringLobeAt(const Scattering& sc, const Vec3& k_in, const Vec3& n_any) : sc_(&sc), k_in_(k_in) {
+  // The front side is where the incident wave comes from.
+  n_ = dot(k_in, n_any) < 0 ? n_any : -n_any;
+  const double cos_i = std::clamp(-dot(k_in, n_), 0.0, 1.0);
+  spec_ = k_in + (2 * cos_i) * n_;
+  if (sc.lobe == ScatteringLobe::lambertian) inv_norm_ = 1 / kPi;
+  else if (sc.lobe == ScatteringLobe::directive) inv_norm_ = 1 / lobe_integral_cos(sc.alpha_r, cos_i);
+  // The back lobe points along -k_in, also theta_i from the normal.
+  else
+    inv_norm_ = 1 / (sc.lambda_r * lobe_integral_cos(sc.alpha_r, cos_i) +
+                     (1 - sc.lambda_r) * lobe_integral_cos(sc.alpha_i, cos_i));
+}
+
+double ScatteringLobeAt::operator()(const Vec3& k_out) const {
+  const double cos_s = dot(k_out, n_);
+  if (!(cos_s > 0)) return 0;
+  if (sc_->lobe == ScatteringLobe::lambertian) return cos_s * inv_norm_;
+  const double lobe_r = ipow((1 + std::clamp(dot(k_out, spec_), -1.0, 1.0)) / 2, sc_->alpha_r);
+  if (sc_->lobe == ScatteringLobe::directive) return lobe_r * inv_norm_;
+  const double lobe_i = ipow((1 + std::clamp(-dot(k_out, k_in_), -1.0, 1.0)) / 2, sc_->alpha_i);
+  return (sc_->lambda_r * lobe_r + (1 - sc_->lambda_r) * lobe_i) * inv_norm_;
 }
 
 double scattering_pattern(const Scattering& sc, const Vec3& k_in, const Vec3& k_out, const Vec3& n_any) {
-  // The front side is where the incident wave comes from.
-  const Vec3 n = dot(k_in, n_any) < 0 ? n_any : -n_any;
-  const double cos_s = dot(k_out, n);
-  if (!(cos_s > 0)) return 0;
-  if (sc.lobe == ScatteringLobe::lambertian) return cos_s / kPi;
-  const double cos_i = std::clamp(-dot(k_in, n), 0.0, 1.0);
-  const double theta_i = std::acos(cos_i);
-  const Vec3 spec = k_in + (2 * cos_i) * n;
-  const double lobe_r = std::pow((1 + std::clamp(dot(k_out, spec), -1.0, 1.0)) / 2, sc.alpha_r);
-  if (sc.lobe == ScatteringLobe::directive) return lobe_r / lobe_integral(sc.alpha_r, theta_i);
-  const double lobe_i = std::pow((1 + std::clamp(-dot(k_out, k_in), -1.0, 1.0)) / 2, sc.alpha_i);
-  // The back lobe points along -k_in, also theta_i from the normal.
-  const double norm =
-      sc.lambda_r * lobe_integral(sc.alpha_r, theta_i) + (1 - sc.lambda_r) * lobe_integral(sc.alpha_i, theta_i);
-  return (sc.lambda_r * lobe_r + (1 - sc.lambda_r) * lobe_i) / norm;
+  return ScatteringLobeAt(sc, k_in, n_any)(k_out);
 }
 
 namespace {

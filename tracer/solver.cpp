@@ -539,12 +539,13 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         // its polarisation and K_x across it.
         const double len_in = st.len + hit.t;
         const Scattering& sc = material.scattering;
+        const ScatteringLobeAt lobe(sc, st.d, plane.normal);
         for (std::uint32_t j : diffuse->rx) {
           const Vec3 w = nodes[j].position - p;
           const double rs = norm(w);
           if (rs < 1e-6) continue;
           const Vec3 ks = (1.0 / rs) * w;
-          const double f = scattering_pattern(sc, st.d, ks, plane.normal);
+          const double f = lobe(ks);
           if (!(f > 0)) continue;
           ++rays;
           if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
