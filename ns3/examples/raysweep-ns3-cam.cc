@@ -54,6 +54,7 @@ struct Run
     bool inTx = false;
     uint64_t sent = 0;
     NodeContainer nodes;
+    std::vector<Ptr<Socket>> sockets; // PacketSocket registers raw pointers with its node: keep them alive
 };
 
 Run g;
@@ -210,12 +211,15 @@ main(int argc, char* argv[])
         tx->Bind();
         tx->Connect(addr);
         tx->SetAllowBroadcast(true);
+        g.sockets.push_back(rx);
+        g.sockets.push_back(tx);
         Simulator::Schedule(tStart + Seconds(phase->GetValue(0, 1.0 / rateHz)), &SendCam, tx, i, packetBytes, period,
                             tEnd);
     }
     Simulator::Stop(tEnd);
     Simulator::Run();
     Simulator::Destroy();
+    g.sockets.clear();
 
     // Outputs.
     std::filesystem::create_directories(outDir);
