@@ -174,16 +174,7 @@ Ns3TableWriter::Ns3TableWriter(const std::filesystem::path& path, const Ns3Table
 }
 
 Ns3TableWriter::~Ns3TableWriter() {
-  if (!impl_ || impl_->finished || !impl_->out.open()) return;
-  QuietHdf5 quiet;
-  try {
-    impl_->out.flush_all();
-  } catch (...) {
-  }
-  try {
-    impl_->out.close_all(false);
-  } catch (...) {
-  }
+  if (impl_ && !impl_->finished) impl_->out.abandon();
 }
 
 void Ns3TableWriter::add_frame(double time_s, const std::vector<NodeState>& states, const std::vector<Ns3Pair>& pairs,

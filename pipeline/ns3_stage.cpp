@@ -52,11 +52,7 @@ json run_ns3_table_stage(const Ns3TableArgs& args, const std::vector<std::string
   const json prov = provenance("ns3-table", inputs, config, recorded_command(argv));
 
   generators::Ns3TableHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
+  stamp_header(header, kVersion, kGitHash, config, prov);
 
   spdlog::info("ns3-table: {} -> {}", args.channels, args.out);
   const fs::path out(args.out);
