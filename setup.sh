@@ -12,6 +12,7 @@ PACKAGES=(
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libtomlplusplus-dev libssl-dev
   libgtest-dev libbenchmark-dev
   sumo sumo-tools
+  libns3-dev ns3 libgsl-dev
   openmpi-bin libopenmpi-dev
   python3-h5py python3-numpy python3-matplotlib python3-pyproj
 )

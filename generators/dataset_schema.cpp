@@ -28,6 +28,7 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/ns3_table.hpp"
 #include "generators/sinr/sinr_file.hpp"
 #include "meshkit/errors.hpp"
 
@@ -36,6 +37,7 @@ namespace raysweep::generators {
 namespace embedded {
 extern const char kDatasetSchemaJson[];  // generated from schemas/raysweep_dataset.schema.json
 extern const char kSinrSchemaJson[];     // generated from schemas/raysweep_sinr.schema.json
+extern const char kNs3TableSchemaJson[]; // generated from schemas/raysweep_ns3_table.schema.json
 }  // namespace embedded
 
 const std::string& dataset_schema_json() {
@@ -55,6 +57,16 @@ const std::string& sinr_schema_json() {
 
 const nlohmann::json& sinr_schema() {
   static const nlohmann::json schema = nlohmann::json::parse(sinr_schema_json());
+  return schema;
+}
+
+const std::string& ns3_table_schema_json() {
+  static const std::string text(embedded::kNs3TableSchemaJson);
+  return text;
+}
+
+const nlohmann::json& ns3_table_schema() {
+  static const nlohmann::json schema = nlohmann::json::parse(ns3_table_schema_json());
   return schema;
 }
 
@@ -82,10 +94,13 @@ using hdf5::type_mismatch;
 const nlohmann::json* schema_of(const std::string& format) {
   if (format == kDatasetFormat) return &dataset_schema();
   if (format == sinr::kSinrFormat) return &sinr_schema();
+  if (format == kNs3TableFormat) return &ns3_table_schema();
   return nullptr;
 }
 
-std::string known_formats() { return std::string(kDatasetFormat) + ", " + sinr::kSinrFormat; }
+std::string known_formats() {
+  return std::string(kDatasetFormat) + ", " + sinr::kSinrFormat + ", " + kNs3TableFormat;
+}
 
 // Counts the rows that break a rule and remembers the first.
 struct Tally {
@@ -786,6 +801,26 @@ class SinrValidator : public Validator {
   }
 };
 
+// Rules of the ns-3 lookup table (raysweep-ns3-table) beyond the schema: the
+// reader's own checks (frame times increasing, states sorted by node, pairs
+// a < b strictly sorted within their frame, LoS classes, no NaN gains), run
+// when the structure is sound.
+class Ns3TableValidator : public Validator {
+ public:
+  using Validator::Validator;
+
+ protected:
+  void rules() override {
+    if (!problems_.empty()) return;
+    try {
+      Ns3Table::load(path_);
+    } catch (const meshkit::InputError& e) {
+      const std::string what = e.what();
+      problem(what.rfind(path_ + ": ", 0) == 0 ? what.substr(path_.size() + 2) : what);
+    }
+  }
+};
+
 // ---------------------------------------------------------------------------
 // dataset_info helpers: readers that throw meshkit::InputError naming the file.
 
@@ -1117,6 +1152,90 @@ std::string format_sinr_info(const nlohmann::json& info) {
   return o.str();
 }
 
+// Summary of an ns-3 lookup table (format checked by the caller).
+nlohmann::json ns3_table_info(const InfoReader& r) {
+  const hid_t root = r.fid.get();
+  nlohmann::json info;
+  info["file"] = r.path;
+  info["format"] = kNs3TableFormat;
+  info["schema_version"] = r.str_attr("schema_version", "");
+  info["raysweep_version"] = r.str_attr("raysweep_version", "");
+  info["git_hash"] = r.str_attr("git_hash", "");
+  info["complete"] = r.num_attr<std::uint64_t>(root, "complete", H5T_NATIVE_UINT64).value_or(0) == 1;
+  for (const char* k : {"carrier_hz", "bandwidth_hz", "time_start_s", "time_end_s", "frame_step_s"})
+    info[k] = r.num_attr<double>(root, k, H5T_NATIVE_DOUBLE).value_or(0.0);
+  const auto source = r.num_attr<std::uint64_t>(root, "gain_source", H5T_NATIVE_UINT64).value_or(255);
+  info["gain_source"] = source <= 1 ? gain_source_name(static_cast<GainSource>(source)) : "unknown";
+  std::uint64_t vehicles = 0, rsus = 0, nodes = 0;
+  if (r.exists("/nodes/kind"))
+    r.scan_u64("/nodes/kind", [&](const std::vector<std::uint64_t>& k) {
+      for (auto v : k) (v == 1 ? rsus : vehicles) += 1;
+      nodes += k.size();
+    });
+  info["nodes"] = nodes;
+  info["vehicles"] = vehicles;
+  info["rsus"] = rsus;
+  info["frames"] = r.rows("/frames/time_s");
+  info["node_states"] = r.rows("/node_states/node");
+  const hsize_t pairs = r.rows("/pairs/los_class");
+  std::uint64_t los[3] = {0, 0, 0}, other_class = 0;
+  r.scan_u64("/pairs/los_class", [&](const std::vector<std::uint64_t>& v) {
+    for (auto c : v) (c < 3 ? los[c] : other_class) += 1;
+  });
+  info["pairs"] = pairs;
+  info["los_counts"] = {{"LOS", los[0]}, {"NLOSV", los[1]}, {"NLOS", los[2]}};
+  if (other_class) info["los_counts"]["invalid"] = other_class;
+  std::uint64_t bands = 0;
+  if (has_link(root, "spectrum")) {
+    Handle g(H5Gopen2(root, "spectrum", H5P_DEFAULT), H5Gclose);
+    if (!g.valid()) r.fail("/spectrum", "cannot open group");
+    bands = r.num_attr<std::uint64_t>(g.get(), "band_count", H5T_NATIVE_UINT64).value_or(0);
+    info["band_width_hz"] = r.num_attr<double>(g.get(), "band_width_hz", H5T_NATIVE_DOUBLE).value_or(0.0);
+  }
+  info["bands"] = bands;
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(r.path, ec);
+  info["file_bytes"] = ec ? 0 : bytes;
+  info["bytes_per_pair_frame"] = pairs && !ec ? static_cast<double>(bytes) / static_cast<double>(pairs) : 0.0;
+  return info;
+}
+
+std::string format_ns3_table_info(const nlohmann::json& info) {
+  auto num = [&](const char* k) { return info.value(k, nlohmann::json(0)).get<std::uint64_t>(); };
+  auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
+  std::ostringstream o;
+  char buf[256];
+  o << identity_lines(info);
+  std::snprintf(buf, sizeof buf, "frames        %llu (%.3f s .. %.3f s, step %.3g s)\n",
+                static_cast<unsigned long long>(num("frames")), real("time_start_s"), real("time_end_s"),
+                real("frame_step_s"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "nodes         %llu (%llu vehicles, %llu RSUs), %llu node states\n",
+                static_cast<unsigned long long>(num("nodes")), static_cast<unsigned long long>(num("vehicles")),
+                static_cast<unsigned long long>(num("rsus")), static_cast<unsigned long long>(num("node_states")));
+  o << buf;
+  const double pairs = static_cast<double>(num("pairs"));
+  const auto& los = info.value("los_counts", nlohmann::json::object());
+  auto pct = [&](const char* k) { return pairs > 0 ? 100.0 * los.value(k, 0.0) / pairs : 0.0; };
+  std::snprintf(buf, sizeof buf, "pairs         %llu pair-frames: LOS %.1f %%, NLOSV %.1f %%, NLOS %.1f %%\n",
+                static_cast<unsigned long long>(num("pairs")), pct("LOS"), pct("NLOSV"), pct("NLOS"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "gain          wideband from %s; carrier %.6g GHz, bandwidth %.6g MHz\n",
+                info.value("gain_source", std::string()).c_str(), real("carrier_hz") / 1e9, real("bandwidth_hz") / 1e6);
+  o << buf;
+  if (num("bands"))
+    std::snprintf(buf, sizeof buf, "spectrum      %llu bands of %.6g kHz\n", static_cast<unsigned long long>(num("bands")),
+                  real("band_width_hz") / 1e3);
+  else
+    std::snprintf(buf, sizeof buf, "spectrum      none\n");
+  o << buf;
+  std::snprintf(buf, sizeof buf, "size          %s (%llu bytes), %.2f bytes per pair-frame\n",
+                human_bytes(static_cast<double>(num("file_bytes"))).c_str(),
+                static_cast<unsigned long long>(num("file_bytes")), real("bytes_per_pair_frame"));
+  o << buf;
+  return o.str();
+}
+
 // Opens the file, reads its format and runs that format's validator.
 void validate_file(const std::string& path, std::vector<std::string>& problems) {
   std::error_code ec;
@@ -1155,6 +1274,8 @@ void validate_file(const std::string& path, std::vector<std::string>& problems) 
   }
   if (format == kDatasetFormat)
     ChannelValidator(path, std::move(fid), *schema, problems).run();
+  else if (format == kNs3TableFormat)
+    Ns3TableValidator(path, std::move(fid), *schema, problems).run();
   else
     SinrValidator(path, std::move(fid), *schema, problems).run();
 }
@@ -1247,12 +1368,14 @@ nlohmann::json dataset_info(const std::string& path) {
   const std::string format = r.str_attr("format", "");
   if (format == kDatasetFormat) return channel_info(r);
   if (format == sinr::kSinrFormat) return sinr_info(r);
+  if (format == kNs3TableFormat) return ns3_table_info(r);
   throw meshkit::InputError(path, "attribute format",
                             "not a raysweep file (format \"" + format + "\"; this program reads " + known_formats() + ")");
 }
 
 std::string format_dataset_info(const nlohmann::json& info) {
   if (info.value("format", std::string()) == sinr::kSinrFormat) return format_sinr_info(info);
+  if (info.value("format", std::string()) == kNs3TableFormat) return format_ns3_table_info(info);
   return format_channel_info(info);
 }
 

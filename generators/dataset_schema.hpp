@@ -1,8 +1,9 @@
 // Checking and summarising raysweep files against their schemas, embedded at
 // build time and documented in schemas/README.md: channel datasets (format
-// raysweep-channels, schemas/raysweep_dataset.schema.json) and SINR outcome files
-// (format raysweep-sinr, schemas/raysweep_sinr.schema.json). The root attribute
-// `format` says which.
+// raysweep-channels, schemas/raysweep_dataset.schema.json), SINR outcome files
+// (format raysweep-sinr, schemas/raysweep_sinr.schema.json) and ns-3 lookup tables
+// (format raysweep-ns3-table, schemas/raysweep_ns3_table.schema.json). The root
+// attribute `format` says which.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -19,6 +20,10 @@ const nlohmann::json& dataset_schema();
 // The embedded schemas/raysweep_sinr.schema.json text, and parsed.
 const std::string& sinr_schema_json();
 const nlohmann::json& sinr_schema();
+
+// The embedded schemas/raysweep_ns3_table.schema.json text, and parsed.
+const std::string& ns3_table_schema_json();
+const nlohmann::json& ns3_table_schema();
 
 // Checks a file against the schema of its `format` (a missing or unknown format is
 // one problem naming the file and the format). Both formats: every group, dataset

@@ -301,6 +301,19 @@ void ColumnFile::close_all(bool mark_complete) {
   if (fid_.get() >= 0 && fid_.close() < 0) write_fail(file_, "/", "cannot close file");
 }
 
+void ColumnFile::abandon() noexcept {
+  if (!open()) return;
+  QuietHdf5 quiet;
+  try {
+    flush_all();
+  } catch (...) {
+  }
+  try {
+    close_all(false);
+  } catch (...) {
+  }
+}
+
 // ---------------------------------------------------------------------------
 // Reading.
 

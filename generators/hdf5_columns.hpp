@@ -140,6 +140,8 @@ class ColumnFile {
   // Closes datasets, groups and the file, in that order. complete = 1 is written
   // last, just before the file is closed, so a file that has it has everything.
   void close_all(bool mark_complete);
+  // For writers' destructors: flushes and closes without `complete`, ignoring errors.
+  void abandon() noexcept;
 
  private:
   std::string file_;

@@ -16,6 +16,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/ns3_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
@@ -235,6 +236,7 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   load_trace_config(args.city);
   load_sweep_config(args.city);
   const SinrSettings sinr = load_sinr_settings(args.city);
+  const Ns3Settings ns3 = load_ns3_settings(args.city);
   const int stages = sinr.present && sinr.enabled ? 5 : 4;
   if (city.fcd.empty()) load_traffic_args(args.city, city, "");
   if (args.shard && args.merge) throw std::invalid_argument("--shard and --merge: trace every shard first, then merge once");
@@ -451,6 +453,22 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
     }
     summary["sinr_files"] = files;
     summary["sinr_report"] = report_dir.string();
+  }
+  // The ns-3 lookup table, when the city asks for it.
+  if (ns3.present && ns3.enabled) {
+    const fs::path table = out / "ns3" / "table.h5";
+    const std::string ns3_key = sha256_text(version + tables_text(root, {"ns3"}) + file_hash(dataset.string()));
+    if (!args.force && stamps.up_to_date("ns3", ns3_key, table)) {
+      spdlog::info("ns3: up to date ({})", table.string());
+    } else {
+      run_ns3_table_stage({dataset.string(), table.string(), args.city}, argv);
+      stamps.mark("ns3", ns3_key);
+    }
+    for (const auto& p : generators::validate_dataset(table.string())) {
+      spdlog::error("{}: {}", table.string(), p);
+      problems.push_back(table.string() + ": " + p);
+    }
+    summary["ns3_table"] = table.string();
   }
   summary["valid"] = problems.empty();
   return summary;

@@ -17,6 +17,7 @@
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/mpi_run.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/ns3_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
@@ -180,6 +181,12 @@ int main(int argc, char** argv) {
   sn->add_option("--rats-enabled", sinr.rats_enabled, "both | 80211p-only | nrv2x-only (overrides the config)");
   auto* sn_seed = sn->add_option("--seed", sinr_seed, "random seed (overrides the config)");
 
+  raysweep::pipeline::Ns3TableArgs ns3_table;
+  auto* nt = app.add_subcommand("ns3-table", "lookup table for ns-3's Raysweep models (HDF5) from a channel dataset");
+  nt->add_option("--channels", ns3_table.channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
+  nt->add_option("--out", ns3_table.out, "output table .h5")->required();
+  nt->add_option("--config", ns3_table.config, "TOML config ([ns3] table)");
+
   raysweep::pipeline::ReportArgs report;
   auto* rp = app.add_subcommand("report", "SINR report: PNGs (SINR densities, PRR vs distance) and a comparison table");
   rp->add_option("--sinr", report.sinr, "SINR files; the first is the reference of the disagreement ratios")
@@ -281,6 +288,11 @@ int main(int argc, char** argv) {
         std::cout << ", PRR " << rat << " " << v["prr"].get<double>();
       std::cout << "\n";
     }
+    if (nt->parsed()) {
+      const auto summary = raysweep::pipeline::run_ns3_table_stage(ns3_table, args);
+      std::cout << ns3_table.out << ": " << summary["frames"] << " frames, " << summary["pairs"] << " pair-frames, "
+                << summary["bytes"] << " bytes\n";
+    }
     if (rp->parsed()) {
       const auto r = raysweep::pipeline::run_report_stage(report);
       std::cout << r["table"].get<std::string>();
@@ -322,6 +334,8 @@ int main(int argc, char** argv) {
         for (const auto& f : summary["sinr_files"]) std::cout << " " << f.get<std::string>();
         std::cout << "\nSINR report: " << summary["sinr_report"].get<std::string>() << "/report.md (+ PNGs)\n";
       }
+      if (summary.contains("ns3_table"))
+        std::cout << "ns-3 table: " << summary["ns3_table"].get<std::string>() << " (ns3/README.md)\n";
       if (!summary["valid"].get<bool>()) return 1;
     }
     if (to->parsed()) {

@@ -26,6 +26,18 @@ struct InputFile {
 // the single-process run and writes the same bytes (docs/scaleout.md).
 std::vector<std::string> recorded_command(const std::vector<std::string>& argv);
 
+// Fills the identity fields every file header shares (raysweep_version, git_hash,
+// config, inputs, provenance) from a provenance() record.
+template <class Header>
+void stamp_header(Header& h, const std::string& version, const std::string& git_hash, const nlohmann::json& config,
+                  const nlohmann::json& prov) {
+  h.raysweep_version = version;
+  h.git_hash = git_hash;
+  h.config = config;
+  h.inputs = prov["inputs"];
+  h.provenance = prov;
+}
+
 nlohmann::json provenance(const std::string& stage, const std::vector<InputFile>& inputs,
                           const nlohmann::json& config, const std::vector<std::string>& argv);
 

@@ -279,11 +279,7 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
   const json prov = provenance("sinr", inputs, config, recorded_command(argv));
 
   gs::SinrHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
+  stamp_header(header, kVersion, kGitHash, config, prov);
   header.seed = cfg.seed;
   header.channel_model = gs::channel_model_name(model.kind);
   header.los_from_ray = model.los_from_ray;

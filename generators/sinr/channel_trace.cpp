@@ -15,6 +15,7 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/hdf5_util.hpp"
+#include "generators/ns3_table.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators::sinr {
@@ -293,15 +294,7 @@ void ChannelTrace::finalize() {
       if (!state(f, l.tx) || !state(f, l.rx)) throw OrderError("/links", where + pair + " names a node absent from the frame");
     }
   }
-  std::vector<double> dt;
-  for (std::size_t f = 1; f < time_.size(); ++f) dt.push_back(time_[f] - time_[f - 1]);
-  step_ = 0.1;
-  if (!dt.empty()) {
-    const std::size_t mid = dt.size() / 2;
-    std::nth_element(dt.begin(), dt.begin() + mid, dt.end());
-    step_ = dt[mid];
-    if (dt.size() % 2 == 0) step_ = 0.5 * (step_ + *std::max_element(dt.begin(), dt.begin() + mid));
-  }
+  step_ = median_step(time_);
 }
 
 std::size_t ChannelTrace::frame_at(double t) const {

@@ -56,6 +56,10 @@ class ChannelTrace {
 
   // The link between a and b (either order) in a frame; nullptr when not stored.
   const Link* link(std::size_t frame, std::uint32_t a, std::uint32_t b) const;
+  // A frame's links, sorted by (tx, rx); the first one is row link_row(frame) of the file's /links.
+  const Link* links_begin(std::size_t frame) const { return links_.data() + link_offset_[frame]; }
+  const Link* links_end(std::size_t frame) const { return links_.data() + link_offset_[frame + 1]; }
+  std::uint64_t link_row(std::size_t frame) const { return link_offset_[frame]; }
 
  private:
   std::string path_;

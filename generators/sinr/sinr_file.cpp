@@ -336,16 +336,7 @@ SinrWriter::SinrWriter(const std::filesystem::path& path, const SinrHeader& head
 }
 
 SinrWriter::~SinrWriter() {
-  if (!impl_ || impl_->finished || !impl_->out.open()) return;
-  QuietHdf5 quiet;
-  try {
-    impl_->out.flush_all();
-  } catch (...) {
-  }
-  try {
-    impl_->out.close_all(false);
-  } catch (...) {
-  }
+  if (impl_ && !impl_->finished) impl_->out.abandon();
 }
 
 void SinrWriter::add_transmission(const Transmission& t) {

@@ -1,0 +1,144 @@
+// build_ns3_table(): a channel dataset -> the ns-3 lookup table. The links and
+// node states come from the SINR generator's loader (ChannelTrace); the
+// frequency responses, when present, are read a frame at a time from /cfr/h.
+#include <hdf5.h>
+
+#include <cmath>
+#include <complex>
+#include <limits>
+#include <stdexcept>
+
+#include "generators/hdf5_columns.hpp"
+#include "generators/ns3_table.hpp"
+#include "generators/sinr/channel_trace.hpp"
+#include "meshkit/errors.hpp"
+
+namespace raysweep::generators {
+
+namespace {
+
+float power_db(double mean_power) {
+  return mean_power > 0 ? static_cast<float>(10.0 * std::log10(mean_power)) : -std::numeric_limits<float>::infinity();
+}
+
+// Runs f; the hdf5 readers' ReadError (naming the dataset) becomes an InputError naming the file too.
+template <class F>
+auto guard(const std::string& path, F&& f) {
+  try {
+    return f();
+  } catch (const hdf5::ReadError& e) {
+    throw meshkit::InputError(path, "", e.what());
+  }
+}
+
+// The /cfr group of a channel dataset, when it has one.
+class CfrReader {
+ public:
+  explicit CfrReader(const std::string& path) : path_(path), types_(path) {
+    hdf5::QuietHdf5 quiet;
+    fid_ = hdf5::Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+    if (!fid_.valid()) throw meshkit::InputError(path, "", "cannot open as HDF5");
+    if (!hdf5::has_link(fid_.get(), "cfr")) return;
+    guard(path_, [&] {
+      group_ = hdf5::Handle(H5Gopen2(fid_.get(), "cfr", H5P_DEFAULT), H5Gclose);
+      if (!group_.valid()) hdf5::read_fail("/cfr", "not a group");
+      subcarriers_ = hdf5::read_num_attr<std::uint32_t>(group_.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
+      spacing_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
+      carrier_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "carrier_hz", H5T_NATIVE_DOUBLE);
+      h_ = hdf5::Handle(H5Dopen2(group_.get(), "h", H5P_DEFAULT), H5Dclose);
+      if (!h_.valid()) hdf5::read_fail("/cfr/h", "cannot open dataset");
+      const auto dims = hdf5::dataset_dims(h_.get(), "/cfr/h");
+      if (dims.size() != 2 || dims[1] != subcarriers_)
+        hdf5::read_fail("/cfr/h", "shape is not [links, " + std::to_string(subcarriers_) + "]");
+      rows_ = dims[0];
+      return 0;
+    });
+  }
+  bool present() const { return subcarriers_ > 0; }
+  std::uint32_t subcarriers() const { return subcarriers_; }
+  double spacing_hz() const { return spacing_hz_; }
+  double carrier_hz() const { return carrier_hz_; }
+  hsize_t rows() const { return rows_; }
+
+  std::vector<std::complex<float>> read(hsize_t first, hsize_t count) const {
+    hdf5::QuietHdf5 quiet;
+    return guard(path_, [&] {
+      return hdf5::read_rows<std::complex<float>>(h_.get(), "/cfr/h", types_.mem(hdf5::Dtype::c64), first, count,
+                                                  subcarriers_);
+    });
+  }
+
+ private:
+  std::string path_;
+  hdf5::Types types_;
+  hdf5::Handle fid_, group_, h_;
+  std::uint32_t subcarriers_ = 0;
+  double spacing_hz_ = 0, carrier_hz_ = 0;
+  hsize_t rows_ = 0;
+};
+
+}  // namespace
+
+Ns3TableBuildStats build_ns3_table(const std::string& dataset, const std::filesystem::path& out, Ns3TableHeader header,
+                                   std::uint32_t subcarriers_per_band) {
+  const sinr::ChannelTrace trace = sinr::ChannelTrace::load(dataset);
+  const CfrReader cfr(dataset);
+  if (cfr.present() && cfr.rows() != trace.link_row(trace.frames()))
+    throw meshkit::InputError(dataset, "/cfr/h",
+                              std::to_string(cfr.rows()) + " rows but /links has " +
+                                  std::to_string(trace.link_row(trace.frames())));
+  header.carrier_hz = trace.carrier_hz();
+  header.bandwidth_hz = trace.bandwidth_hz();
+  header.gain_source = cfr.present() ? GainSource::cfr : GainSource::incoherent;
+
+  Ns3TableBands bands;
+  const std::uint32_t k = cfr.subcarriers();
+  if (cfr.present() && subcarriers_per_band > 0) {
+    if (k % subcarriers_per_band != 0)
+      throw std::invalid_argument("subcarriers_per_band " + std::to_string(subcarriers_per_band) + " does not divide the " +
+                                  std::to_string(k) + " subcarriers of " + dataset);
+    bands.subcarriers_per_band = subcarriers_per_band;
+    bands.band_width_hz = subcarriers_per_band * cfr.spacing_hz();
+    for (std::uint32_t first = 0; first < k; first += subcarriers_per_band) {
+      // Subcarrier j is at carrier + (j - floor(K / 2)) * spacing; a band's centre is its subcarriers' mean.
+      const double mid = first + 0.5 * (subcarriers_per_band - 1) - std::floor(k / 2.0);
+      bands.center_hz.push_back(cfr.carrier_hz() + mid * cfr.spacing_hz());
+    }
+  }
+
+  Ns3TableWriter writer(out, header, bands);
+  std::vector<NodeState> states;
+  std::vector<Ns3Pair> pairs;
+  std::vector<float> band_gains;
+  for (std::size_t f = 0; f < trace.frames(); ++f) {
+    states.assign(trace.states_begin(f), trace.states_end(f));
+    pairs.clear();
+    band_gains.clear();
+    const std::size_t links = static_cast<std::size_t>(trace.links_end(f) - trace.links_begin(f));
+    std::vector<std::complex<float>> h;
+    if (cfr.present()) h = cfr.read(trace.link_row(f), links);
+    for (std::size_t i = 0; i < links; ++i) {
+      const auto& l = trace.links_begin(f)[i];
+      Ns3Pair p{l.tx, l.rx, l.gain_db, l.los_class};
+      if (cfr.present()) {
+        double total = 0, band = 0;
+        for (std::uint32_t j = 0; j < k; ++j) {
+          const double pw = std::norm(std::complex<double>(h[i * k + j]));
+          total += pw;
+          band += pw;
+          if (bands.count() && (j + 1) % subcarriers_per_band == 0) {
+            band_gains.push_back(power_db(band / subcarriers_per_band));
+            band = 0;
+          }
+        }
+        p.gain_db = power_db(total / k);
+      }
+      pairs.push_back(p);
+    }
+    writer.add_frame(trace.time(f), states, pairs, band_gains);
+  }
+  writer.finish(trace.nodes());
+  return {writer.frames(), writer.pairs(), trace.nodes().size(), bands.count(), header.gain_source};
+}
+
+}  // namespace raysweep::generators
