@@ -23,6 +23,27 @@ double cross2(P2 a, P2 b) { return a.x * b.y - a.y * b.x; }
 double closest_to_origin(P2 a, P2 b, P2 c, std::array<double, 3>& w) {
   const P2 p{0, 0};
   const P2 ab = sub2(b, a), ac = sub2(c, a), ap = sub2(p, a);
+  // Seen edge-on (no area): the nearest of its three sides. The regions
+  // below would round into "inside" and report a crossing far from it.
+  const double scale = dot2(ab, ab) + dot2(ac, ac);
+  if (std::fabs(cross2(ab, ac)) <= 1e-12 * scale) {
+    const P2 v[3] = {a, b, c};
+    double best = 1e300;
+    for (int k = 0; k < 3; ++k) {
+      const P2 e = sub2(v[(k + 1) % 3], v[k]);
+      const double ee = dot2(e, e);
+      const double s = ee > 0 ? std::clamp(-dot2(v[k], e) / ee, 0.0, 1.0) : 0.0;
+      const P2 q{v[k].x + s * e.x, v[k].y + s * e.y};
+      const double dist = std::sqrt(dot2(q, q));
+      if (dist < best) {
+        best = dist;
+        w = {0, 0, 0};
+        w[k] = 1 - s;
+        w[(k + 1) % 3] = s;
+      }
+    }
+    return best;
+  }
   const double d1 = dot2(ab, ap), d2 = dot2(ac, ap);
   auto at = [&](double wa, double wb, double wc) {
     w = {wa, wb, wc};
@@ -92,9 +113,14 @@ struct Clearance {
 };
 
 // Clearance of one obstacle (its triangles) from the line a + t u, t in
-// (0, d), over the first Fresnel radius there.
-Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& near,
-                             const Vec3& a, const Vec3& u, const Vec3& e1, const Vec3& e2, double d, double lambda) {
+// (0, d), over the first Fresnel radius there. `near`: its faces near the
+// zone with a lower bound of their clearance, ascending; faces are skipped
+// once their bound reaches `bound` (the caller's worst so far: they cannot
+// lower it) or the obstacle's own best. Faces the line may cross have a
+// bound <= 0 and are never skipped.
+Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& face_begin,
+                             const std::vector<FresnelObstacles::NearFace>& near, const Vec3& a, const Vec3& u,
+                             const Vec3& e1, const Vec3& e2, double d, double lambda, double bound) {
   auto r1 = [&](double t) {
     t = std::clamp(t, 1e-3 * d, d - 1e-3 * d);
     return std::sqrt(lambda * t * (d - t) / d);
@@ -113,22 +139,28 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
     }
     return before < 3 && after < 3;
   };
-  for (auto index : near) {
-    std::array<P2, 3> q;
-    std::array<double, 3> t;
-    if (!project(tris[index], q, t)) continue;
-    std::array<double, 3> w;
-    const double h = closest_to_origin(q[0], q[1], q[2], w);
-    const double tc = w[0] * t[0] + w[1] * t[1] + w[2] * t[2];
-    if (h <= 0) {
-      if (tc > 0 && tc < d) blocked_t = tc;
-      continue;
-    }
-    const double c = h / r1(tc);
-    if (c < best.clearance) {
-      best.clearance = c;
-      const double qx = w[0] * q[0].x + w[1] * q[1].x + w[2] * q[2].x, qy = w[0] * q[0].y + w[1] * q[1].y + w[2] * q[2].y;
-      best.edge = a + tc * u + qx * e1 + qy * e2;
+  for (const auto& nf : near) {
+    if (nf.bound > 0 && nf.bound >= std::min(bound, best.clearance)) break;
+    for (std::uint32_t index = face_begin[nf.face]; index < face_begin[nf.face + 1]; ++index) {
+      std::array<P2, 3> q;
+      std::array<double, 3> t;
+      if (!project(tris[index], q, t)) continue;
+      std::array<double, 3> w;
+      const double h = closest_to_origin(q[0], q[1], q[2], w);
+      const double tc = w[0] * t[0] + w[1] * t[1] + w[2] * t[2];
+      if (h <= 0) {
+        // Of several crossings, the one nearest mid-path (where r1 is
+        // largest): independent of the order triangles are visited in.
+        if (tc > 0 && tc < d && (blocked_t < 0 || std::fabs(tc - 0.5 * d) < std::fabs(blocked_t - 0.5 * d)))
+          blocked_t = tc;
+        continue;
+      }
+      const double c = h / r1(tc);
+      if (c < best.clearance) {
+        best.clearance = c;
+        const double qx = w[0] * q[0].x + w[1] * q[1].x + w[2] * q[2].x, qy = w[0] * q[0].y + w[1] * q[1].y + w[2] * q[2].y;
+        best.edge = a + tc * u + qx * e1 + qy * e2;
+      }
     }
   }
   if (blocked_t < 0) return best;
@@ -136,25 +168,38 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   // over 32 directions. Exact pruning: triangles in decreasing order of
   // their farthest vertex; a direction stops once no further triangle can
   // push its exit out, or once it cannot beat the best direction.
-  std::vector<std::pair<double, std::array<P2, 3>>> outline;
+  struct Piece {
+    double reach;  // farthest vertex from the line
+    P2 centre;     // bounding circle (cheap test before exit_along)
+    double radius;
+    std::array<P2, 3> q;
+  };
+  std::vector<Piece> outline;
   for (const auto& tri : tris) {
     std::array<P2, 3> q;
     std::array<double, 3> t;
     if (!project(tri, q, t)) continue;
-    double reach = 0;
-    for (const P2& v : q) reach = std::max(reach, dot2(v, v));
-    outline.emplace_back(std::sqrt(reach), q);
+    double reach = 0, radius = 0;
+    const P2 m{(q[0].x + q[1].x + q[2].x) / 3, (q[0].y + q[1].y + q[2].y) / 3};
+    for (const P2& v : q) {
+      reach = std::max(reach, dot2(v, v));
+      radius = std::max(radius, dot2(sub2(v, m), sub2(v, m)));
+    }
+    outline.push_back({std::sqrt(reach), m, std::sqrt(radius) * (1 + 1e-9) + 1e-12, q});
   }
-  std::sort(outline.begin(), outline.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+  std::sort(outline.begin(), outline.end(), [](const Piece& x, const Piece& y) { return x.reach > y.reach; });
   double depth = 1e300;
   P2 best_dir{0, 1};
   for (int k = 0; k < 32; ++k) {
     const double phi = 2 * kPi * k / 32;
     const P2 dir{std::cos(phi), std::sin(phi)};
     double out = 0;
-    for (const auto& [reach, q] : outline) {
-      if (reach <= out || out >= depth) break;
-      out = std::max(out, exit_along(q[0], q[1], q[2], dir));
+    for (const Piece& pc : outline) {
+      if (pc.reach <= out || out >= depth) break;
+      // The ray s * dir, s >= 0, misses the piece's bounding circle.
+      const double along = dot2(pc.centre, dir), across = cross2(dir, pc.centre);
+      if (std::fabs(across) > pc.radius || along < -pc.radius) continue;
+      out = std::max(out, exit_along(pc.q[0], pc.q[1], pc.q[2], dir));
     }
     if (out < depth) {
       depth = out;
@@ -230,13 +275,14 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
   if (!(d > 0)) return f;
   const Vec3 u = (1.0 / d) * (b - a);
   const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
-  std::vector<std::uint32_t> near;
+  std::vector<NearFace> near;
   for (std::size_t k = 0; k < obstacles_.size(); ++k) {
     const Obstacle& o = obstacles_[k];
     if (o.vehicle && (static_cast<int>(k) == skip_a || static_cast<int>(k) == skip_b)) continue;
-    if (!near_faces(o, a, u, d, lambda, near)) continue;
     double& worst = o.vehicle ? f.vehicle_clearance : f.static_clearance;
-    worst = std::min(worst, obstacle_clearance(o.triangles, near, a, u, e1, e2, d, lambda).clearance);
+    if (!near_faces(o, a, u, d, lambda, near)) continue;
+    worst = std::min(worst, obstacle_clearance(o.triangles, o.face_begin, near, a, u, e1, e2, d, lambda,
+                                               std::min(worst, 1.0)).clearance);
   }
   f.vehicle_clearance = std::min(f.vehicle_clearance, 1.0);
   f.static_clearance = std::min(f.static_clearance, 1.0);
@@ -245,17 +291,31 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
 }
 
 bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
-                                  std::vector<std::uint32_t>& near) const {
+                                  std::vector<NearFace>& near) const {
   near.clear();
   const double reach = zone_reach(o.sphere, a, u, d, lambda);  // bounds r1 over every face of the obstacle
   if (reach < 0) return false;
+  const double t_lo = 1e-3 * d, t_hi = d - 1e-3 * d;  // obstacle_clearance's r1 clamp
   for (std::size_t face = 0; face + 1 < o.face_begin.size(); ++face) {
     const auto& fs = o.face_spheres[face];
     const Vec3 w = fs.centre - a;
     const double t = dot(w, u), r = fs.radius + reach;
-    if (t < -fs.radius || t > d + fs.radius || dot(w, w) - t * t > r * r) continue;
-    for (std::uint32_t q = o.face_begin[face]; q < o.face_begin[face + 1]; ++q) near.push_back(q);
+    const double h2 = dot(w, w) - t * t;
+    if (t < -fs.radius || t > d + fs.radius || h2 > r * r) continue;
+    // Every point of the face is at least h - radius from the line, where
+    // r1 is at most its value at the point of [t - radius, t + radius]
+    // nearest mid-path.
+    const double gap = std::sqrt(std::max(0.0, h2)) - fs.radius;
+    double bound = -1e300;
+    if (gap > 0) {
+      const double tm = std::clamp(0.5 * d, std::clamp(t - fs.radius, t_lo, t_hi), std::clamp(t + fs.radius, t_lo, t_hi));
+      bound = gap / std::sqrt(lambda * tm * (d - tm) / d);
+    }
+    near.push_back({bound, static_cast<std::uint32_t>(face)});
   }
+  std::sort(near.begin(), near.end(), [](const NearFace& x, const NearFace& y) {
+    return x.bound != y.bound ? x.bound < y.bound : x.face < y.face;
+  });
   return !near.empty();
 }
 
@@ -272,7 +332,7 @@ KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, d
     int k = -1;
     Vec3 point{0, 0, 0};
   };
-  std::vector<std::uint32_t> near;
+  std::vector<NearFace> near;
   // The vehicle with the largest v over the line p -> q (`exclude` aside).
   auto main_edge = [&](const Vec3& p, const Vec3& q, int exclude) {
     Edge best;
@@ -285,7 +345,9 @@ KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, d
       const int ki = static_cast<int>(k);
       if (!o.vehicle || ki == skip_a || ki == skip_b || ki == exclude) continue;
       if (!near_faces(o, p, u, d, lambda, near)) continue;
-      const Clearance c = obstacle_clearance(o.triangles, near, p, u, e1, e2, d, lambda);
+      // Only a vehicle clearer than the best so far can be skipped.
+      const double bound = best.k >= 0 ? -best.v / std::sqrt(2.0) : 1e300;
+      const Clearance c = obstacle_clearance(o.triangles, o.face_begin, near, p, u, e1, e2, d, lambda, bound);
       const double v = -std::sqrt(2.0) * c.clearance;
       if (v > best.v) best = Edge{v, ki, c.edge};
     }

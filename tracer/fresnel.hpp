@@ -61,6 +61,13 @@ class FresnelObstacles {
   KnifeEdges vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1,
                                  int skip_b = -1) const;
 
+  // A face of an obstacle near a line's first zone, with a lower bound of
+  // its clearance (negative when the line may cross it).
+  struct NearFace {
+    double bound;
+    std::uint32_t face;
+  };
+
  private:
   struct Obstacle {
     TraceScene::Sphere sphere;
@@ -69,10 +76,10 @@ class FresnelObstacles {
     std::vector<std::uint32_t> face_begin;
     bool vehicle = false;
   };
-  // Triangles of o's faces whose spheres come within the first zone of the
-  // line a + t u, t in [0, d]; false when none.
+  // The faces of o whose spheres come within the first zone of the line
+  // a + t u, t in [0, d], by ascending bound; false when none.
   bool near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
-                  std::vector<std::uint32_t>& near) const;
+                  std::vector<NearFace>& near) const;
   std::vector<Obstacle> obstacles_;  // vehicles first (index = vehicle), then static objects
 };
 
