@@ -14,6 +14,7 @@ PACKAGES=(
   sumo sumo-tools
   openmpi-bin libopenmpi-dev
   python3-h5py python3-numpy python3-matplotlib python3-pyproj
+  libopenvdb-dev libboost-iostreams-dev python3-openvdb blender
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
