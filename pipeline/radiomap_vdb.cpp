@@ -102,7 +102,7 @@ VdbSummary read_radiomap_vdb(const std::string& path) {
     auto base = file.readGrid(name.gridName());
     VdbSummary::Grid g;
     g.name = base->getName();
-    g.type = base->type();
+    g.type = base->valueType();
     g.active = base->activeVoxelCount();
     g.voxel_m = base->voxelSize()[0];
     g.meta = get_meta(*base);
