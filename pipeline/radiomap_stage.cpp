@@ -19,6 +19,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/radiomap_vdb.hpp"
+#include "pipeline/render_stage.hpp"
 #include "pipeline/toml_fields.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
@@ -374,6 +375,44 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     }
   }
   summary["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return summary;
+}
+
+json run_city_radiomap(const std::string& city_file, const std::string& out, const std::string& scene_dir,
+                       const std::string& net, bool force, const std::vector<std::string>& argv) {
+  const fs::path vdb = fs::path(out) / "radiomap.vdb", png = fs::path(out) / "radiomap.png";
+  const fs::path render = fs::path(out) / "render.png";
+  const auto newest_input = std::max(fs::last_write_time(fs::path(scene_dir) / "scene.glb"), fs::last_write_time(city_file));
+  json summary = {{"vdb", vdb.string()}};
+  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input) {
+    RadioMapArgs a;
+    a.scene = scene_dir;
+    a.net = net;
+    a.out = vdb.string();
+    a.config = city_file;
+    if (load_radiomap_settings(city_file).png) a.png = png.string();
+    spdlog::info("radiomap: {}", vdb.string());
+    summary = run_radiomap_stage(a, argv);
+  } else {
+    spdlog::info("radiomap: up to date ({})", vdb.string());
+  }
+  if (fs::exists(png)) summary["png"] = png.string();
+  if (find_blender().empty()) {
+    spdlog::warn("{}: no picture (Blender not installed: apt-get install blender)", render.string());
+  } else if (force || !fs::exists(render) || fs::last_write_time(render) < fs::last_write_time(vdb)) {
+    RenderArgs r;
+    r.scene = scene_dir;
+    r.radiomap = vdb.string();
+    r.out = render.string();
+    try {
+      run_render_stage(r, argv);
+      summary["render"] = render.string();
+    } catch (const std::exception& e) {
+      spdlog::warn("{}: no picture ({})", render.string(), e.what());
+    }
+  } else {
+    summary["render"] = render.string();
+  }
   return summary;
 }
 

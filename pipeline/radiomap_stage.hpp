@@ -52,4 +52,10 @@ struct RadioMapArgs {
 
 nlohmann::json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>& argv);
 
+// `raysweep run`: <out>/radiomap.vdb and radiomap.png from the city's
+// [radiomap] table, then <out>/render.png (the scene and the map) when Blender
+// is installed. Redone when the scene or the city file is newer (or `force`).
+nlohmann::json run_city_radiomap(const std::string& city_file, const std::string& out, const std::string& scene_dir,
+                                 const std::string& net, bool force, const std::vector<std::string>& argv);
+
 }  // namespace raysweep::pipeline
