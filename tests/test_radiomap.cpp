@@ -135,15 +135,7 @@ TEST(RadioMap, BadSettingsExitTwoWithAClearMessage) {
 namespace {
 
 fs::path demo_scene() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / "raysweep-tests" / ("radiomap_demo_scene." + std::to_string(getpid()));
-    fs::remove_all(d);
-    const auto demo = source_dir() / "datasets/demo";
-    auto r = run_raysweep("-q scene --no-preview --osm " + (demo / "kirchberg.osm").string() + " --net " +
-                          (demo / "kirchberg.net.xml").string() + " --out " + d.string());
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    return d;
-  }();
+  static const fs::path dir = build_demo_scene("radiomap_demo_scene");
   return dir;
 }
 
