@@ -15,6 +15,7 @@ PACKAGES=(
   libns3-dev ns3 libgsl-dev
   openmpi-bin libopenmpi-dev
   python3-h5py python3-numpy python3-matplotlib python3-pyproj
+  libopenvdb-dev libboost-iostreams-dev python3-openvdb blender
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -14,6 +14,7 @@
 #include "pipeline/config.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/preview.hpp"
+#include "pipeline/radiomap_stage.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/ns3_stage.hpp"
@@ -394,6 +395,10 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   summary["info"] = generators::dataset_info(dataset.string());
   auto problems = generators::validate_dataset(dataset.string());
   for (const auto& p : problems) spdlog::error("{}: {}", dataset.string(), p);
+
+  // Radio map ([radiomap]) and the Blender picture: docs/radiomap.md.
+  if (load_radiomap_settings(args.city).present)
+    summary["radiomap"] = run_city_radiomap(args.city, out.string(), scene_dir.string(), city.net, args.force, argv);
 
   // SINR outcomes and their report, when the city asks for them.
   if (sinr.present && sinr.enabled) {

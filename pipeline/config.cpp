@@ -16,7 +16,8 @@ namespace {
 // Sections every stage may meet in a city config; keys inside them are
 // checked by the stage that owns them.
 const std::set<std::string> kKnownSections = {"scene", "vehicles", "traffic", "radio", "tracer",
-                                              "materials", "sweep", "sinr", "city", "report", "ns3"};
+                                              "materials", "sweep", "sinr", "city", "report", "ns3",
+                                              "radiomap"};
 
 std::string get_material(const std::string& path, const std::string& key, const toml::node& n) {
   auto v = n.value<std::string>();

@@ -16,6 +16,8 @@
 #include "pipeline/config.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/mpi_run.hpp"
+#include "pipeline/radiomap_stage.hpp"
+#include "pipeline/render_stage.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/ns3_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
@@ -225,6 +227,32 @@ int main(int argc, char** argv) {
   bool tradeoff_no_chart = false;
   to->add_flag("--no-chart", tradeoff_no_chart, "skip tradeoff.png");
 
+  // Radio maps (OpenVDB) and Blender pictures: docs/radiomap.md.
+  raysweep::pipeline::RadioMapArgs radiomap;
+  auto* rm = app.add_subcommand("radiomap", "path gain from transmitters at every street voxel (OpenVDB)");
+  rm->add_option("--scene", radiomap.scene, "scene folder (from `raysweep scene`)")->required();
+  rm->add_option("--vehicles", radiomap.vehicles, "vehicle library folder (default: built-in parametric models)");
+  rm->add_option("--poses", radiomap.poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
+  rm->add_option("--net", radiomap.net, "SUMO network for region \"streets\" (default: the scene's)");
+  rm->add_option("--tx", radiomap.tx, "transmitter ID,X,Y,Z[,POWER_DBM] (repeatable)");
+  rm->add_option("--out", radiomap.out, "output .vdb")->required();
+  rm->add_option("--config", radiomap.config, "TOML config ([radiomap], [radio], [tracer], [materials.<name>])");
+  rm->add_option("--png", radiomap.png, "horizontal slice at antenna height (.png)");
+  rm->add_option("--check", radiomap.check, "trace N voxels with the per-point tracer and report the agreement")
+      ->check(CLI::NonNegativeNumber);
+  raysweep::pipeline::RenderArgs render;
+  auto* rn = app.add_subcommand("render", "render the scene, vehicles, paths and a radio map with Blender (PNG)");
+  rn->add_option("--scene", render.scene, "scene folder (from `raysweep scene`)")->required();
+  rn->add_option("--vehicles", render.vehicles, "vehicle library folder (default: built-in parametric models)");
+  rn->add_option("--poses", render.poses, "vehicle poses CSV");
+  rn->add_option("--paths", render.paths, "paths to draw: a `raysweep trace` JSON");
+  rn->add_option("--radiomap", render.radiomap, "radio map to draw (.vdb from `raysweep radiomap`)");
+  rn->add_option("--out", render.out, "output .png")->required();
+  rn->add_option("--camera", render.camera, "top | oblique | X,Y,Z:TX,TY,TZ")->capture_default_str();
+  rn->add_option("--size", render.size, "W,H in pixels")->capture_default_str();
+  rn->add_option("--samples", render.samples, "Cycles samples per pixel")->check(CLI::PositiveNumber)
+      ->capture_default_str();
+
   std::string check_file;
   auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
   vd->add_option("file", check_file, "dataset .h5")->required();
@@ -267,6 +295,20 @@ int main(int argc, char** argv) {
       std::cout << trace.out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
                 << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
                 << " paths\n";
+    }
+    if (rm->parsed()) {
+      const auto r = raysweep::pipeline::run_radiomap_stage(radiomap, args);
+      std::cout << radiomap.out << ": " << r["voxels"] << " voxels (" << r["region"].get<std::string>() << "), "
+                << r["tx"].size() << " transmitter(s) in " << r["solve_s"].get<double>() << " s\n";
+      if (!r["check"].is_null())
+        std::cout << "vs trace at " << r["check"]["voxels"] << " voxels: |diff| median "
+                  << r["check"]["median_abs_db"].get<double>() << " dB, p90 " << r["check"]["p90_abs_db"].get<double>()
+                  << " dB\n";
+      if (r.contains("png")) std::cout << "picture: " << r["png"].get<std::string>() << "\n";
+    }
+    if (rn->parsed()) {
+      const auto r = raysweep::pipeline::run_render_stage(render, args);
+      std::cout << render.out << ": rendered in " << r["seconds"].get<double>() << " s\n";
     }
     if (tf->parsed()) {
       if (!traffic_classes.empty()) traffic.classes = parse_class_mix(traffic_classes);

@@ -15,15 +15,7 @@ namespace {
 
 // Built once per process: ctest runs each test in its own process, in parallel.
 fs::path demo_scene() {
-  static const fs::path dir = [] {
-    fs::path d = fs::temp_directory_path() / "raysweep-tests" / ("cli_trace_demo_scene." + std::to_string(getpid()));
-    fs::remove_all(d);
-    const auto demo = source_dir() / "datasets/demo";
-    auto r = run_raysweep("-q scene --no-preview --osm " + (demo / "kirchberg.osm").string() + " --net " +
-                          (demo / "kirchberg.net.xml").string() + " --out " + d.string());
-    EXPECT_EQ(r.exit_code, 0) << r.output;
-    return d;
-  }();
+  static const fs::path dir = build_demo_scene("cli_trace_demo_scene");
   return dir;
 }
 

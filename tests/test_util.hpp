@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
 #include <cstdio>
@@ -56,6 +57,18 @@ inline RunResult run_command(const std::string& cmd) {
 
 #ifdef RAYSWEEP_BINARY
 inline RunResult run_raysweep(const std::string& args) { return run_command(std::string(RAYSWEEP_BINARY) + " " + args); }
+
+// The demo city's scene, built once per process into a folder named by `tag`
+// and the process id (ctest runs each test in its own process, in parallel).
+inline fs::path build_demo_scene(const std::string& tag) {
+  fs::path d = fs::temp_directory_path() / "raysweep-tests" / (tag + "." + std::to_string(::getpid()));
+  fs::remove_all(d);
+  const auto demo = source_dir() / "datasets/demo";
+  auto r = run_raysweep("-q scene --no-preview --osm " + (demo / "kirchberg.osm").string() + " --net " +
+                        (demo / "kirchberg.net.xml").string() + " --out " + d.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  return d;
+}
 #endif
 
 }  // namespace raysweep::test

@@ -1,0 +1,173 @@
+#include "generators/radiomap_solver.hpp"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
+
+#include "tracer/em.hpp"
+#include "tracer/fresnel.hpp"
+#include "tracer/image_search.hpp"
+
+namespace raysweep::generators {
+
+using tracer::Node;
+using tracer::Vec3;
+using namespace tracer;  // vector helpers (tracer/vec.hpp)
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// Points per batch: one image-source pass per batch (the sources are built
+// once per batch and tested against all of its points at once).
+constexpr std::size_t kBatch = 2048;
+
+// Angle of v around the edge, from t0 towards n0, in [0, 2 pi).
+double edge_angle(const tracer::Edge& e, const Vec3& v) {
+  const double a = std::atan2(dot(v, e.n0), dot(v, e.t0));
+  return a < 0 ? a + 2 * kPi : a;
+}
+
+// |a|^2 of the free-space direct path from `from` to `to` (antenna patterns
+// and polarisation included): what compute_path gives for an unobstructed
+// direct segment.
+double free_space_gain(const tracer::RadioConfig& radio, const Node& from, const Node& to) {
+  const Vec3 d = to.position - from.position;
+  const double len = norm(d);
+  if (!(len > 0)) return 0;
+  const Vec3 u = (1.0 / len) * d;
+  const Vec3 e_t = tracer::antenna_field(radio.antenna, u, from.forward);
+  const Vec3 f_r = tracer::antenna_field(radio.antenna, -u, to.forward);
+  const double lambda = tracer::kSpeedOfLight / radio.frequency_hz;
+  const double amp = lambda / (4 * kPi * len) * dot(f_r, e_t);
+  return amp * amp;
+}
+
+}  // namespace
+
+bool inside_static(const tracer::TraceScene& scene, const Vec3& p) {
+  std::vector<tracer::Hit> hits;
+  scene.all_hits(p, Vec3{0, 0, 1}, 0, 1e7, hits, 64);
+  for (const auto& h : hits) {
+    if (scene.is_vehicle(h.face)) continue;
+    // The first static face above: its back (normal pointing up, away from
+    // the point) faces the point when the point is inside the closed object.
+    return scene.plane(h.face).normal[2] > 0;
+  }
+  return false;
+}
+
+std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, const Node& tx,
+                                              const std::vector<Vec3>& points, const tracer::TracerConfig& cfg,
+                                              const tracer::RadioConfig& radio, RadioMapSolveStats* stats) {
+  tracer::validate(cfg, radio);
+  // Rough surfaces reflect their whole |Gamma|^2 here (no diffuse lobe: see
+  // the header), so the materials are evaluated as smooth.
+  const tracer::Electromagnetics em(scene.material_names(), radio, cfg.materials, false);
+  const double range = tracer::max_range_m(cfg, radio);
+  const double lambda = em.wavelength();
+  const int order = cfg.specular ? std::min(cfg.max_depth, 2) : 0;
+  const tracer::ImageFaces faces = tracer::image_faces(scene);
+
+  // Edges whose outside the transmitter sees within range (the cheap half
+  // of the diffraction test, done once).
+  std::vector<std::uint32_t> tx_edges;
+  if (cfg.diffraction) {
+    const auto& edges = scene.edges();
+    for (std::uint32_t k = 0; k < edges.size(); ++k) {
+      const tracer::Edge& e = edges[k];
+      const Vec3 w = tx.position - e.a;
+      const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
+      if (norm(tx.position - (e.a + z * e.e)) > range) continue;
+      if (edge_angle(e, w - dot(w, e.e) * e.e) <= e.n * kPi) tx_edges.push_back(k);
+    }
+  }
+  const bool vehicles = !scene.vehicles().empty();
+  std::optional<tracer::FresnelObstacles> obstacles;
+  if (vehicles && cfg.vehicle_diffraction) obstacles.emplace(scene);
+
+  std::vector<RadioMapPointResult> out(points.size());
+  const std::size_t batches = (points.size() + kBatch - 1) / kBatch;
+  tbb::enumerable_thread_specific<RadioMapSolveStats> local;
+  tbb::parallel_for(std::size_t{0}, batches, [&](std::size_t b) {
+    auto& st = local.local();
+    const std::size_t begin = b * kBatch, end = std::min(points.size(), begin + kBatch);
+    std::vector<Node> nodes{tx};
+    nodes.front().id = "tx";
+    std::vector<std::uint32_t> receivers;
+    for (std::size_t i = begin; i < end; ++i) {
+      Node n;
+      n.id = "p";
+      n.position = points[i];
+      if (norm(points[i] - tx.position) <= range) receivers.push_back(static_cast<std::uint32_t>(nodes.size()));
+      nodes.push_back(n);
+    }
+    // Candidate face sequences of every point in range, by receiver index.
+    std::vector<tracer::ImageCandidate> found;
+    if (order > 0) tracer::image_candidates(scene, faces, nodes, 0, receivers, order, found);
+    std::vector<std::vector<std::vector<tracer::FaceRef>>> cand(nodes.size());
+    for (auto& c : found) cand[c.rx].push_back(std::move(c.faces));
+
+    std::vector<std::uint32_t> blockers;
+    for (std::uint32_t r = 1; r < nodes.size(); ++r) {
+      RadioMapPointResult& res = out[begin + r - 1];
+      const Node& rx = nodes[r];
+      ++st.points;
+      res.los = tracer::classify_los(scene, tx.position, rx.position, blockers, &st.rays);
+      if (norm(rx.position - tx.position) > range) {
+        ++st.out_of_range;
+        continue;
+      }
+      auto& seqs = cand[r];
+      std::sort(seqs.begin(), seqs.end());
+      seqs.erase(std::unique(seqs.begin(), seqs.end()), seqs.end());
+      double gain = 0;
+      std::uint32_t n_paths = 0;
+      auto add = [&](double g) {
+        gain += g;
+        ++n_paths;
+      };
+      if (cfg.los) {
+        if (res.los == tracer::LosClass::LOS) {
+          if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
+            double g = std::norm(p->a);
+            if (obstacles) {
+              const auto ke = obstacles->vehicle_knife_edges(tx.position, rx.position, lambda, tx.vehicle, -1);
+              g *= std::pow(10.0, -ke.loss_db / 10);
+            }
+            add(g);
+          }
+        } else if (res.los == tracer::LosClass::NLOSV && obstacles) {
+          const auto ke = obstacles->vehicle_knife_edges(tx.position, rx.position, lambda, tx.vehicle, -1);
+          if (ke.loss_db > 0) add(free_space_gain(radio, tx, rx) * std::pow(10.0, -ke.loss_db / 10));
+        } else if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
+          add(std::norm(p->a));  // through slabs
+        }
+      }
+      st.candidates += seqs.size() + tx_edges.size();
+      for (const auto& s : seqs)
+        if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, s, nullptr, &st.rays)) add(std::norm(p->a));
+      for (auto k : tx_edges)
+        if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, scene.edges()[k], &st.rays))
+          add(std::norm(p->a));
+      res.gain = gain;
+      res.paths = n_paths;
+      st.paths += n_paths;
+    }
+  });
+  if (stats) {
+    *stats = RadioMapSolveStats{};
+    for (const auto& s : local) {
+      stats->points += s.points;
+      stats->paths += s.paths;
+      stats->candidates += s.candidates;
+      stats->out_of_range += s.out_of_range;
+      stats->rays += s.rays;
+    }
+  }
+  return out;
+}
+
+}  // namespace raysweep::generators

@@ -1,0 +1,419 @@
+#include "pipeline/radiomap_stage.hpp"
+
+#include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <set>
+#include <sstream>
+
+#include "generators/radiomap_solver.hpp"
+#include "meshkit/gltf_io.hpp"
+#include "meshkit/sumo_net.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/preview.hpp"
+#include "pipeline/provenance.hpp"
+#include "pipeline/radiomap_vdb.hpp"
+#include "pipeline/render_stage.hpp"
+#include "pipeline/toml_fields.hpp"
+#include "pipeline/trace_config.hpp"
+#include "pipeline/trace_inputs.hpp"
+#include "tracer/tracer.hpp"
+
+namespace raysweep::pipeline {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using tracer::Vec3;
+using Voxel = std::array<std::int32_t, 3>;
+
+namespace {
+
+// Path gain stored where a voxel has no path (out of range, or nothing
+// reaches it); recorded as the grids' `no_path_db` metadata.
+constexpr float kNoPathDb = -300.0f;
+
+// The network the scene was built against (its manifest's "net" input).
+std::string scene_network(const std::string& scene_dir) {
+  std::ifstream in(fs::path(scene_dir) / "manifest.json");
+  if (!in) return {};
+  try {
+    const json m = json::parse(in);
+    for (const auto& i : m.at("provenance").at("inputs"))
+      if (i.value("role", "") == "net" && fs::exists(i.value("path", ""))) return i["path"].get<std::string>();
+  } catch (const json::exception&) {
+  }
+  return {};
+}
+
+// Voxel columns (i, j) whose centre (i v, j v) lies within `margin` of a lane
+// centre line, sorted.
+std::vector<std::array<std::int32_t, 2>> street_columns(const meshkit::SumoNetwork& net, double v, double margin) {
+  std::set<std::array<std::int32_t, 2>> cols;
+  for (const auto& lane : net.lane_shapes)
+    for (std::size_t s = 0; s + 1 < lane.size(); ++s) {
+      const double ax = lane[s][0], ay = lane[s][1], bx = lane[s + 1][0], by = lane[s + 1][1];
+      const double dx = bx - ax, dy = by - ay, len2 = dx * dx + dy * dy;
+      const auto i0 = static_cast<std::int32_t>(std::floor((std::min(ax, bx) - margin) / v));
+      const auto i1 = static_cast<std::int32_t>(std::ceil((std::max(ax, bx) + margin) / v));
+      const auto j0 = static_cast<std::int32_t>(std::floor((std::min(ay, by) - margin) / v));
+      const auto j1 = static_cast<std::int32_t>(std::ceil((std::max(ay, by) + margin) / v));
+      for (auto i = i0; i <= i1; ++i)
+        for (auto j = j0; j <= j1; ++j) {
+          const double px = i * v, py = j * v;
+          const double t = len2 > 0 ? std::clamp(((px - ax) * dx + (py - ay) * dy) / len2, 0.0, 1.0) : 0.0;
+          const double ex = ax + t * dx - px, ey = ay + t * dy - py;
+          if (ex * ex + ey * ey <= margin * margin) cols.insert({i, j});
+        }
+    }
+  return {cols.begin(), cols.end()};
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::sort(v.begin(), v.end());
+  const double pos = q * static_cast<double>(v.size() - 1);
+  const auto lo = static_cast<std::size_t>(std::floor(pos));
+  const auto hi = std::min(v.size() - 1, lo + 1);
+  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+}  // namespace
+
+RadioMapTx parse_radiomap_tx(const std::string& spec, const std::string& what) {
+  std::vector<std::string> parts;
+  std::stringstream ss(spec);
+  for (std::string p; std::getline(ss, p, ',');) parts.push_back(p);
+  if (parts.size() < 4 || parts.size() > 5 || parts[0].empty())
+    throw std::invalid_argument(what + " '" + spec + "': expected ID,X,Y,Z[,POWER_DBM]");
+  RadioMapTx tx;
+  tx.id = parts[0];
+  for (char c : tx.id)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'))
+      throw std::invalid_argument(what + " '" + spec + "': the id may hold letters, digits, '_' and '-' only");
+  try {
+    for (int k = 0; k < 3; ++k) {
+      std::size_t used = 0;
+      tx.position[k] = std::stod(parts[k + 1], &used);
+      if (used != parts[k + 1].size() || !std::isfinite(tx.position[k])) throw std::invalid_argument("");
+    }
+    if (parts.size() == 5) {
+      std::size_t used = 0;
+      tx.power_dbm = std::stod(parts[4], &used);
+      if (used != parts[4].size() || !std::isfinite(tx.power_dbm)) throw std::invalid_argument("");
+      tx.power_given = true;
+    }
+  } catch (const std::exception&) {
+    throw std::invalid_argument(what + " '" + spec + "': coordinates and power must be finite numbers");
+  }
+  return tx;
+}
+
+json RadioMapSettings::to_json() const {
+  json txs = json::array();
+  for (const auto& t : tx) {
+    txs.push_back({{"id", t.id}, {"position", t.position}});
+    if (t.power_given) txs.back()["power_dbm"] = t.power_dbm;
+  }
+  return {{"voxel_m", voxel_m}, {"z_min_m", z_min_m},       {"z_max_m", z_max_m}, {"region", region},
+          {"street_margin_m", street_margin_m}, {"tx", txs}, {"png", png}};
+}
+
+RadioMapSettings load_radiomap_settings(const std::string& path) {
+  using namespace toml_fields;
+  RadioMapSettings s;
+  if (path.empty()) return s;
+  const toml::table root = toml::parse_file(path);
+  const toml::table* t = root["radiomap"].as_table();
+  if (!t) return s;
+  s.present = true;
+  for (auto&& [k, node] : *t) {
+    const std::string key(k.str()), full = "radiomap." + key;
+    if (key == "voxel_m") s.voxel_m = number(path, full, node);
+    else if (key == "z_min_m") s.z_min_m = number(path, full, node);
+    else if (key == "z_max_m") s.z_max_m = number(path, full, node);
+    else if (key == "street_margin_m") s.street_margin_m = number(path, full, node);
+    else if (key == "png") s.png = boolean(path, full, node);
+    else if (key == "region") {
+      s.region = text(path, full, node);
+      if (s.region != "streets" && s.region != "all")
+        throw ConfigError(where(path, full, node) + ": expected \"streets\" or \"all\"");
+    } else if (key == "tx") {
+      for (const auto& spec : strings(path, full, node)) {
+        try {
+          s.tx.push_back(parse_radiomap_tx(spec, "transmitter"));
+        } catch (const std::invalid_argument& e) {
+          throw ConfigError(where(path, full, node) + ": " + e.what());
+        }
+      }
+    } else {
+      throw ConfigError(where(path, full, node) + ": unknown key");
+    }
+  }
+  return s;
+}
+
+json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (fs::path(args.out).extension() != ".vdb") throw std::invalid_argument(args.out + ": output must end in .vdb");
+  if (!args.png.empty() && fs::path(args.png).extension() != ".png")
+    throw std::invalid_argument(args.png + ": the slice picture must end in .png");
+  const TraceSettings trace = load_trace_config(args.config);
+  RadioMapSettings s = load_radiomap_settings(args.config);
+  const std::string cfg_name = args.config.empty() ? std::string("radiomap settings") : args.config;
+  for (const auto& spec : args.tx) s.tx.push_back(parse_radiomap_tx(spec, "--tx"));
+  if (!(s.voxel_m > 0) || !std::isfinite(s.voxel_m))
+    throw std::invalid_argument(cfg_name + ": radiomap.voxel_m must be > 0 (got " + std::to_string(s.voxel_m) + ")");
+  if (!std::isfinite(s.z_min_m) || !std::isfinite(s.z_max_m) || s.z_min_m > s.z_max_m)
+    throw std::invalid_argument(cfg_name + ": radiomap.z_min_m (" + std::to_string(s.z_min_m) +
+                                ") must not exceed radiomap.z_max_m (" + std::to_string(s.z_max_m) + ")");
+  if (!(s.street_margin_m > 0)) throw std::invalid_argument(cfg_name + ": radiomap.street_margin_m must be > 0");
+  if (s.tx.empty()) throw std::invalid_argument("radiomap: no transmitter (--tx ID,X,Y,Z or [radiomap] tx)");
+  std::set<std::string> ids;
+  for (auto& t : s.tx) {
+    if (!ids.insert(t.id).second) throw std::invalid_argument("radiomap: transmitter id '" + t.id + "' twice");
+    if (!t.power_given) t.power_dbm = trace.radio.tx_power_dbm;
+  }
+  const long layers = static_cast<long>(std::floor((s.z_max_m - s.z_min_m) / s.voxel_m + 1e-9)) + 1;
+  if (layers > 100000) throw std::invalid_argument(cfg_name + ": radiomap: more than 100000 voxel layers");
+
+  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
+  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
+  tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
+  std::vector<InputFile> inputs{{"scene", scene_file.string()}};
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!args.poses.empty()) {
+    VehicleLibrary library(args.vehicles, args.lod);
+    inputs.push_back({"poses", args.poses});
+    try {
+      place_vehicles(scene, library, read_poses_csv(args.poses));
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(args.poses + ": " + e.what());
+    }
+    for (const auto& f : library.files()) inputs.push_back({"vehicle_model", f});
+  }
+  for (const auto& t : s.tx)
+    if (generators::inside_static(scene, t.position))
+      throw std::invalid_argument("radiomap: transmitter " + t.id + " at (" + std::to_string(t.position[0]) + ", " +
+                                  std::to_string(t.position[1]) + ", " + std::to_string(t.position[2]) +
+                                  ") is inside a building of " + scene_file.string());
+
+  // The region's voxel columns.
+  std::string net_path = args.net.empty() ? scene_network(args.scene) : args.net;
+  std::string region = s.region.empty() ? (net_path.empty() ? "all" : "streets") : s.region;
+  if (region == "streets" && net_path.empty())
+    throw std::invalid_argument("radiomap: region \"streets\" needs a SUMO network (--net, or a scene built with one)");
+  std::vector<std::array<std::int32_t, 2>> columns;
+  const double v = s.voxel_m;
+  if (region == "streets") {
+    const auto net = meshkit::read_sumo_network(net_path);
+    inputs.push_back({"net", net_path});
+    columns = street_columns(net, v, s.street_margin_m);
+  } else {
+    const auto b = scene.static_bounds();
+    for (auto i = static_cast<std::int32_t>(std::ceil(b.min[0] / v)); i * v <= b.max[0]; ++i)
+      for (auto j = static_cast<std::int32_t>(std::ceil(b.min[1] / v)); j * v <= b.max[1]; ++j) columns.push_back({i, j});
+  }
+  // Voxels of the open air: centres inside a building are never active.
+  std::vector<Voxel> candidates;
+  for (const auto& c : columns)
+    for (std::int32_t k = 0; k < layers; ++k) candidates.push_back({c[0], c[1], k});
+  auto centre = [&](const Voxel& x) { return Vec3{x[0] * v, x[1] * v, s.z_min_m + x[2] * v}; };
+  std::vector<unsigned char> open(candidates.size(), 0);
+  tbb::parallel_for(std::size_t{0}, candidates.size(),
+                    [&](std::size_t n) { open[n] = !generators::inside_static(scene, centre(candidates[n])); });
+  std::vector<Voxel> voxels;
+  std::vector<Vec3> points;
+  for (std::size_t n = 0; n < candidates.size(); ++n)
+    if (open[n]) {
+      voxels.push_back(candidates[n]);
+      points.push_back(centre(candidates[n]));
+    }
+  if (voxels.empty()) throw std::invalid_argument("radiomap: the region holds no voxel in the open air");
+  spdlog::info("radio map: {} voxels ({} region, {} m, {} layers from z = {} m), {} transmitter(s)", voxels.size(),
+               region, v, layers, s.z_min_m, s.tx.size());
+
+  // Per transmitter: path gain and LoS class at every voxel centre.
+  std::vector<VdbGrid> grids;
+  std::vector<float> rss(voxels.size(), kNoPathDb);
+  std::vector<std::int32_t> best(voxels.size(), -1);
+  json per_tx = json::array();
+  double solve_s = 0;
+  for (std::size_t t = 0; t < s.tx.size(); ++t) {
+    const auto& tx = s.tx[t];
+    tracer::Node node;
+    node.id = tx.id;
+    node.position = tx.position;
+    const auto t1 = std::chrono::steady_clock::now();
+    generators::RadioMapSolveStats st;
+    const auto res = generators::solve_points(scene, node, points, trace.tracer, trace.radio, &st);
+    const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+    solve_s += sec;
+    VdbGrid pg{"path_gain_db." + tx.id, true, {}, {}, kNoPathDb, 0, json::object()};
+    VdbGrid lc{"los_class." + tx.id, false, {}, {}, 0, -1, json::object()};
+    pg.f.resize(voxels.size());
+    lc.i.resize(voxels.size());
+    for (std::size_t n = 0; n < voxels.size(); ++n) {
+      pg.f[n] = res[n].gain > 0 ? static_cast<float>(tracer::to_db(res[n].gain)) : kNoPathDb;
+      lc.i[n] = static_cast<std::int32_t>(res[n].los);
+      const float p = pg.f[n] > kNoPathDb ? static_cast<float>(tx.power_dbm) + pg.f[n] : kNoPathDb;
+      if (p > rss[n]) {
+        rss[n] = p;
+        best[n] = static_cast<std::int32_t>(t);
+      }
+    }
+    const json tx_meta = {{"tx_id", tx.id}, {"tx_position_m", tx.position}, {"tx_power_dbm", tx.power_dbm}};
+    pg.meta = tx_meta;
+    pg.meta["quantity"] = "incoherent path gain sum |a|^2 at the voxel centre (dB)";
+    pg.meta["no_path_db"] = kNoPathDb;
+    lc.meta = tx_meta;
+    lc.meta["quantity"] = "geometric LoS class of the direct segment: 0 LOS, 1 NLOSV, 2 NLOS";
+    grids.push_back(std::move(pg));
+    grids.push_back(std::move(lc));
+    per_tx.push_back({{"id", tx.id}, {"seconds", sec}, {"voxels_per_s", voxels.size() / std::max(sec, 1e-9)},
+                      {"paths", st.paths}, {"rays", st.rays}, {"out_of_range", st.out_of_range}});
+    spdlog::info("radio map: {} in {:.2f} s ({:.0f} voxels/s, {} paths)", tx.id, sec, voxels.size() / std::max(sec, 1e-9),
+                 st.paths);
+  }
+  // Display grid: received power of the best server mapped to [0, 1] from
+  // the sensitivity to the map's peak.
+  float peak = kNoPathDb;
+  for (float p : rss) peak = std::max(peak, p);
+  const double floor_dbm = trace.radio.sensitivity_dbm;
+  VdbGrid density{"density", true, {}, {}, 0, 0, json::object()};
+  density.f.resize(voxels.size());
+  for (std::size_t n = 0; n < voxels.size(); ++n)
+    density.f[n] = peak > floor_dbm ? static_cast<float>(std::clamp((rss[n] - floor_dbm) / (peak - floor_dbm), 0.0, 1.0))
+                                    : 0.0f;
+  density.meta = {{"quantity", "rss_dbm mapped linearly to [0, 1] from sensitivity_dbm to the map's peak"},
+                  {"floor_dbm", floor_dbm}, {"peak_dbm", peak}};
+  grids.push_back(VdbGrid{"rss_dbm", true, rss, {}, kNoPathDb, 0,
+                          {{"quantity", "received power of the strongest transmitter: tx_power_dbm + path_gain_db (dBm)"},
+                           {"no_path_db", kNoPathDb}}});
+  grids.push_back(VdbGrid{"best_server", false, {}, best, 0, -1,
+                          {{"quantity", "index into the file's tx list of the strongest transmitter (-1: none)"}}});
+  grids.push_back(std::move(density));
+
+  // Agreement with the per-point tracer (`raysweep trace`) at sampled voxels.
+  json check = nullptr;
+  if (args.check > 0) {
+    const auto& tx = s.tx.front();
+    std::vector<tracer::Node> nodes(1);
+    nodes[0].id = tx.id;
+    nodes[0].position = tx.position;
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+    std::vector<std::size_t> which;
+    const std::size_t step = std::max<std::size_t>(1, voxels.size() / static_cast<std::size_t>(args.check));
+    for (std::size_t n = step / 2; n < voxels.size() && which.size() < static_cast<std::size_t>(args.check); n += step) {
+      tracer::Node p;
+      p.id = "v" + std::to_string(n);
+      p.position = points[n];
+      nodes.push_back(p);
+      which.push_back(n);
+      pairs.emplace_back(0, static_cast<std::uint32_t>(nodes.size() - 1));
+    }
+    const auto snap = tracer::trace_pairs(scene, nodes, pairs, trace.tracer, trace.radio);
+    std::vector<double> diff;
+    std::size_t los_agree = 0;
+    for (std::size_t q = 0; q < which.size(); ++q) {
+      const double g = snap.pairs[q].stats.gain_incoherent;
+      if (static_cast<std::int32_t>(snap.pairs[q].los_class) == grids[1].i[which[q]]) ++los_agree;
+      if (!(g > 0) || tx.power_dbm + tracer::to_db(g) < floor_dbm) continue;
+      diff.push_back(std::fabs(tracer::to_db(g) - grids[0].f[which[q]]));
+    }
+    check = {{"tx", tx.id}, {"voxels", which.size()}, {"above_sensitivity", diff.size()},
+             {"median_abs_db", percentile(diff, 0.5)}, {"p90_abs_db", percentile(diff, 0.9)},
+             {"max_abs_db", diff.empty() ? 0.0 : *std::max_element(diff.begin(), diff.end())},
+             {"los_class_agreement", which.empty() ? 0.0 : double(los_agree) / which.size()}};
+    spdlog::info("radio map vs trace at {} voxels ({} above sensitivity): |diff| median {:.3f} dB, p90 {:.3f} dB",
+                 which.size(), diff.size(), check["median_abs_db"].get<double>(), check["p90_abs_db"].get<double>());
+  }
+
+  json config = trace.to_json();
+  config["radiomap"] = s.to_json();
+  config["radiomap"]["region"] = region;
+  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
+  const json prov = provenance("radiomap", inputs, config, argv);
+  json txs = json::array();
+  for (const auto& t : s.tx) txs.push_back({{"id", t.id}, {"position_m", t.position}, {"power_dbm", t.power_dbm}});
+  json meta = {{"format", "raysweep radio map"},
+               {"format_version", "1.0"},
+               {"carrier_hz", trace.radio.frequency_hz},
+               {"bandwidth_hz", trace.radio.bandwidth_hz},
+               {"sensitivity_dbm", trace.radio.sensitivity_dbm},
+               {"voxel_m", v},
+               {"z_min_m", s.z_min_m},
+               {"z_max_m", s.z_max_m},
+               {"region", region},
+               {"voxels", voxels.size()},
+               {"tx", txs.dump()},
+               {"semantics", "voxel (i,j,k) holds the value at transform.indexToWorld(i,j,k) = (i v, j v, z_min + k v), "
+                             "its centre (a point value, not a voxel average)"},
+               {"method", "per-voxel exact paths through the tracer (generators/radiomap_solver.hpp): LoS, "
+                          "specular/refracted order <= 2 by the image method, first-order UTD diffraction; no "
+                          "diffuse scattering and no order >= 3 (docs/radiomap.md)"},
+               {"tracer_config", config.dump()},
+               {"provenance", prov.dump()}};
+  if (!check.is_null()) meta["check_vs_trace"] = check.dump();
+  if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
+  write_radiomap_vdb(args.out, v, s.z_min_m, voxels, grids, meta);
+
+  json summary = {{"out", args.out}, {"voxels", voxels.size()}, {"region", region}, {"tx", per_tx},
+                  {"solve_s", solve_s}, {"check", check}};
+  if (!args.png.empty()) {
+    const fs::path png(args.png);
+    const fs::path tmp = png.parent_path() / (png.stem().string() + ".tmp.png");
+    if (!png.parent_path().empty()) fs::create_directories(png.parent_path());
+    if (run_python_script("radiomap_slice.py", {args.out, args.scene, tmp.string()})) {
+      fs::rename(tmp, png);
+      summary["png"] = png.string();
+    }
+  }
+  summary["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return summary;
+}
+
+json run_city_radiomap(const std::string& city_file, const std::string& out, const std::string& scene_dir,
+                       const std::string& net, bool force, const std::vector<std::string>& argv) {
+  const fs::path vdb = fs::path(out) / "radiomap.vdb", png = fs::path(out) / "radiomap.png";
+  const fs::path render = fs::path(out) / "render.png";
+  const auto newest_input = std::max(fs::last_write_time(fs::path(scene_dir) / "scene.glb"), fs::last_write_time(city_file));
+  json summary = {{"vdb", vdb.string()}};
+  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input) {
+    RadioMapArgs a;
+    a.scene = scene_dir;
+    a.net = net;
+    a.out = vdb.string();
+    a.config = city_file;
+    if (load_radiomap_settings(city_file).png) a.png = png.string();
+    spdlog::info("radiomap: {}", vdb.string());
+    summary = run_radiomap_stage(a, argv);
+  } else {
+    spdlog::info("radiomap: up to date ({})", vdb.string());
+  }
+  if (fs::exists(png)) summary["png"] = png.string();
+  if (find_blender().empty()) {
+    spdlog::warn("{}: no picture (Blender not installed: apt-get install blender)", render.string());
+  } else if (force || !fs::exists(render) || fs::last_write_time(render) < fs::last_write_time(vdb)) {
+    RenderArgs r;
+    r.scene = scene_dir;
+    r.radiomap = vdb.string();
+    r.out = render.string();
+    try {
+      run_render_stage(r, argv);
+      summary["render"] = render.string();
+    } catch (const std::exception& e) {
+      spdlog::warn("{}: no picture ({})", render.string(), e.what());
+    }
+  } else {
+    summary["render"] = render.string();
+  }
+  return summary;
+}
+
+}  // namespace raysweep::pipeline
