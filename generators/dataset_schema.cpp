@@ -40,35 +40,35 @@ extern const char kSinrSchemaJson[];     // generated from schemas/raysweep_sinr
 extern const char kNs3TableSchemaJson[]; // generated from schemas/raysweep_ns3_table.schema.json
 }  // namespace embedded
 
-const std::string& dataset_schema_json() {
-  static const std::string text(embedded::kDatasetSchemaJson);
-  return text;
+namespace {
+
+// An embedded schema: its text, and the JSON parsed once.
+struct EmbeddedSchema {
+  std::string text;
+  nlohmann::json json;
+  explicit EmbeddedSchema(const char* t) : text(t), json(nlohmann::json::parse(text)) {}
+};
+const EmbeddedSchema& dataset_embedded() {
+  static const EmbeddedSchema s(embedded::kDatasetSchemaJson);
+  return s;
+}
+const EmbeddedSchema& sinr_embedded() {
+  static const EmbeddedSchema s(embedded::kSinrSchemaJson);
+  return s;
+}
+const EmbeddedSchema& ns3_table_embedded() {
+  static const EmbeddedSchema s(embedded::kNs3TableSchemaJson);
+  return s;
 }
 
-const nlohmann::json& dataset_schema() {
-  static const nlohmann::json schema = nlohmann::json::parse(dataset_schema_json());
-  return schema;
-}
+}  // namespace
 
-const std::string& sinr_schema_json() {
-  static const std::string text(embedded::kSinrSchemaJson);
-  return text;
-}
-
-const nlohmann::json& sinr_schema() {
-  static const nlohmann::json schema = nlohmann::json::parse(sinr_schema_json());
-  return schema;
-}
-
-const std::string& ns3_table_schema_json() {
-  static const std::string text(embedded::kNs3TableSchemaJson);
-  return text;
-}
-
-const nlohmann::json& ns3_table_schema() {
-  static const nlohmann::json schema = nlohmann::json::parse(ns3_table_schema_json());
-  return schema;
-}
+const std::string& dataset_schema_json() { return dataset_embedded().text; }
+const nlohmann::json& dataset_schema() { return dataset_embedded().json; }
+const std::string& sinr_schema_json() { return sinr_embedded().text; }
+const nlohmann::json& sinr_schema() { return sinr_embedded().json; }
+const std::string& ns3_table_schema_json() { return ns3_table_embedded().text; }
+const nlohmann::json& ns3_table_schema() { return ns3_table_embedded().json; }
 
 namespace {
 

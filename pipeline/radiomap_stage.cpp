@@ -12,6 +12,7 @@
 #include <set>
 #include <sstream>
 
+#include "generators/dataset_reader.hpp"
 #include "generators/radiomap_solver.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"
@@ -20,6 +21,9 @@
 #include "pipeline/provenance.hpp"
 #include "pipeline/radiomap_vdb.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/staged_output.hpp"
+#include "pipeline/sweep_stage.hpp"
+#include "pipeline/trace_stage.hpp"
 #include "pipeline/toml_fields.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
@@ -378,6 +382,41 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
   return summary;
 }
 
+namespace {
+
+// One frame of the city's dataset for the picture: the vehicles of its
+// middle frame (poses CSV) and that snapshot traced again (`raysweep trace`
+// JSON), so the render shows them with their strongest paths. False when
+// the dataset has no vehicle there.
+bool frame_for_render(const fs::path& dataset, const std::string& city_file, const std::string& scene_dir,
+                      const fs::path& dir, const std::vector<std::string>& argv) {
+  generators::DatasetReader reader(dataset);
+  if (reader.frame_count() == 0) return false;
+  const auto frame = reader.frames(reader.frame_count() / 2, 1).at(0);
+  std::vector<PoseRow> poses;
+  for (const auto& st : frame.nodes) {
+    const auto& info = reader.nodes().at(st.node);
+    if (info.kind != generators::NodeKind::vehicle) continue;
+    poses.push_back({info.id, info.vclass, st.x, st.y, st.z, st.heading_deg,
+                     std::sqrt(double(st.vx) * st.vx + double(st.vy) * st.vy + double(st.vz) * st.vz)});
+  }
+  if (poses.empty()) return false;
+  fs::create_directories(dir);
+  write_file_atomic(dir / "poses.csv", poses_csv(poses));
+  TraceArgs t;
+  t.scene = scene_dir;
+  t.vehicles = (dataset.parent_path() / "vehicles").string();
+  t.poses = (dir / "poses.csv").string();
+  t.config = city_file;
+  t.exclude_objects = load_sweep_config(city_file).exclude_objects;
+  t.out = (dir / "trace.json").string();
+  spdlog::info("render: frame at {:.1f} s ({} vehicles) traced for its paths", frame.time_s, poses.size());
+  run_trace_stage(t, argv);
+  return true;
+}
+
+}  // namespace
+
 json run_city_radiomap(const std::string& city_file, const std::string& out, const std::string& scene_dir,
                        const std::string& net, bool force, const std::vector<std::string>& argv) {
   const fs::path vdb = fs::path(out) / "radiomap.vdb", png = fs::path(out) / "radiomap.png";
@@ -399,12 +438,20 @@ json run_city_radiomap(const std::string& city_file, const std::string& out, con
   if (fs::exists(png)) summary["png"] = png.string();
   if (find_blender().empty()) {
     spdlog::warn("{}: no picture (Blender not installed: apt-get install blender)", render.string());
-  } else if (force || !fs::exists(render) || fs::last_write_time(render) < fs::last_write_time(vdb)) {
+  } else if (force || !fs::exists(render) || fs::last_write_time(render) < fs::last_write_time(vdb) ||
+             (fs::exists(fs::path(out) / "dataset.h5") &&
+              fs::last_write_time(render) < fs::last_write_time(fs::path(out) / "dataset.h5"))) {
     RenderArgs r;
     r.scene = scene_dir;
     r.radiomap = vdb.string();
     r.out = render.string();
     try {
+      const fs::path dataset = fs::path(out) / "dataset.h5", frame_dir = fs::path(out) / "render";
+      if (fs::exists(dataset) && frame_for_render(dataset, city_file, scene_dir, frame_dir, argv)) {
+        r.vehicles = (fs::path(out) / "vehicles").string();
+        r.poses = (frame_dir / "poses.csv").string();
+        r.paths = (frame_dir / "trace.json").string();
+      }
       run_render_stage(r, argv);
       summary["render"] = render.string();
     } catch (const std::exception& e) {
