@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# The test suite under AddressSanitizer + UndefinedBehaviorSanitizer, in its
+# own incremental build (build-asan/): every unit and behaviour test; the long
+# end-to-end CLI runs, ns-3 and Blender stay in the Release suite (setup.sh's
+# build). Any sanitizer report fails its test. Usage: bash tests/sanitize.sh
+set -euo pipefail
+cd "$(dirname "$0")/.."
+export SUMO_HOME=/usr/share/sumo
+cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
+  -DRAYSWEEP_SANITIZE=address,undefined -DRAYSWEEP_BUILD_BENCH=OFF -DRAYSWEEP_BUILD_NS3=OFF >/dev/null
+cmake --build build-asan -j"$(nproc)"
+# Leaks are reported too; the suppressions name third-party libraries only.
+export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1"
+export LSAN_OPTIONS="suppressions=$PWD/tests/sanitize.supp:print_suppressions=0"
+export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
+ctest --test-dir build-asan --output-on-failure -j"$(nproc)" -E '^(Cli|RunSinr|ns3_|Render\.|FcdMemory\.)'
