@@ -88,7 +88,7 @@ main(int argc, char* argv[])
     cmd.AddValue("synthetic-vehicles", "write a synthetic table of this many vehicles", synthetic);
     cmd.AddValue("frames", "frames of the synthetic table (10 Hz)", frames);
     cmd.AddValue("calls", "CalcRxPower calls per timed run", calls);
-    cmd.Parse(argc, argv);
+    cmd.Parse(RaysweepCommandLineArgs(argc, argv));
     if (table.empty())
     {
         std::cerr << "usage: raysweep-ns3-bench --table=T.h5 [--synthetic-vehicles=N --frames=F]\n";

@@ -128,7 +128,7 @@ main(int argc, char* argv[])
     cmd.AddValue("tx-power-dbm", "transmit power (dBm)", txPowerDbm);
     cmd.AddValue("noise-figure-db", "receiver noise figure (dB)", noiseFigureDb);
     cmd.AddValue("seed", "run number of ns-3's random streams (send phases, backoff)", seed);
-    cmd.Parse(argc, argv);
+    cmd.Parse(RaysweepCommandLineArgs(argc, argv));
     if (tableFile.empty() || outDir.empty())
     {
         std::cerr << "usage: raysweep-ns3-cam --table T.h5 --out DIR [--start S] [--duration S] "

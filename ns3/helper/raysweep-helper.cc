@@ -59,4 +59,21 @@ RaysweepHelper::CreateSpectrumPropagationLossModel() const
     return m;
 }
 
+std::vector<std::string>
+RaysweepCommandLineArgs(int argc, char* argv[])
+{
+    std::vector<std::string> args;
+    for (int i = 0; i < argc; ++i)
+    {
+        std::string a = argv[i];
+        if (i > 0 && a.rfind("--", 0) == 0 && a.find('=') == std::string::npos && i + 1 < argc &&
+            std::string(argv[i + 1]).rfind("--", 0) != 0)
+        {
+            a += "=" + std::string(argv[++i]);
+        }
+        args.push_back(a);
+    }
+    return args;
+}
+
 } // namespace ns3

@@ -14,6 +14,9 @@
 #include "ns3/raysweep-spectrum-propagation-loss-model.h"
 #include "ns3/raysweep-table.h"
 
+#include <string>
+#include <vector>
+
 namespace ns3
 {
 
@@ -38,6 +41,12 @@ class RaysweepHelper
     std::string m_file;
     Ptr<RaysweepTable> m_table;
 };
+
+/**
+ * The command line with "--name value" pairs joined into ns-3's "--name=value"
+ * (argv[0] first), so the examples take both spellings.
+ */
+std::vector<std::string> RaysweepCommandLineArgs(int argc, char* argv[]);
 
 } // namespace ns3
 

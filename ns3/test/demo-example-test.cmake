@@ -1,7 +1,8 @@
 # End to end on the demo city: `raysweep run` on a short cut of the embedded
 # demo (its OSM, SUMO network and settings: CFR stored, [ns3] table) writes
 # ns3/table.h5; raysweep-ns3-cam simulates 802.11p over it for 1 s and every
-# row of receptions.csv is one of its counted receptions.
+# row of receptions.csv is one of its counted receptions. Options as "--name value"
+# here (ns-3 itself spells them "--name=value"; the examples take both).
 file(REMOVE_RECURSE ${WORK})
 file(MAKE_DIRECTORY ${WORK})
 file(WRITE ${WORK}/city.toml
@@ -36,7 +37,7 @@ execute_process(COMMAND ${RAYSWEEP} validate ${WORK}/out/ns3/table.h5 RESULT_VAR
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "raysweep validate failed on the demo table (${rc})")
 endif()
-execute_process(COMMAND ${CAM} --table=${WORK}/out/ns3/table.h5 --out=${WORK}/cam --duration=1 --seed=2
+execute_process(COMMAND ${CAM} --table ${WORK}/out/ns3/table.h5 --out ${WORK}/cam --duration 1 --seed=2
                 RESULT_VARIABLE rc ERROR_VARIABLE err)
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "raysweep-ns3-cam failed on the demo table (${rc}): ${err}")
