@@ -63,9 +63,11 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
                                               const std::vector<Vec3>& points, const tracer::TracerConfig& cfg,
                                               const tracer::RadioConfig& radio, RadioMapSolveStats* stats) {
   tracer::validate(cfg, radio);
-  // Rough surfaces reflect their whole |Gamma|^2 here (no diffuse lobe: see
-  // the header), so the materials are evaluated as smooth.
-  const tracer::Electromagnetics em(scene.material_names(), radio, cfg.materials, false);
+  // With diffuse scattering by rays (tracer::diffuse_power adds it), rough
+  // surfaces keep sqrt(1 - S^2) of the specular field as in `trace`; else
+  // they reflect their whole |Gamma|^2 (energy kept, no lobe).
+  const tracer::Electromagnetics em(scene.material_names(), radio, cfg.materials,
+                                    cfg.diffuse && cfg.diffuse_integration == tracer::DiffuseIntegration::rays);
   const double range = tracer::max_range_m(cfg, radio);
   const double lambda = em.wavelength();
   const int order = cfg.specular ? std::min(cfg.max_depth, 2) : 0;

@@ -10,9 +10,11 @@
 //   - specular/refracted paths of order <= min(max_depth, 2) only: the exact
 //     image search is complete there; orders >= 3 come from shoot and bounce
 //     in `trace` and are left out here;
-//   - no diffuse scattering: with tracer.diffuse on, rough surfaces reflect
-//     their whole |Gamma|^2 specularly instead of sqrt(1 - S^2) of the field
-//     plus a diffuse lobe (energy kept, spread over the specular direction);
+//   - no diffuse scattering here: with tracer.diffuse on (integration
+//     "rays"), rough surfaces keep sqrt(1 - S^2) of the specular field as in
+//     `trace`, and the caller adds tracer::diffuse_power (the same gathering
+//     from the transmitter's rays); otherwise they reflect their whole
+//     |Gamma|^2 (energy kept, no lobe);
 //   - the direct path through vehicles (NLOSV) is the free-space path times
 //     the vehicles' knife-edge loss (trace also tries it through windows).
 // The error against `trace` is measured by test_radiomap and reported in

@@ -4,11 +4,13 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <set>
 #include <sstream>
 
@@ -125,7 +127,7 @@ json RadioMapSettings::to_json() const {
     if (t.power_given) txs.back()["power_dbm"] = t.power_dbm;
   }
   return {{"voxel_m", voxel_m}, {"z_min_m", z_min_m},       {"z_max_m", z_max_m}, {"region", region},
-          {"street_margin_m", street_margin_m}, {"tx", txs}, {"png", png}};
+          {"street_margin_m", street_margin_m}, {"diffuse_block_m", diffuse_block_m}, {"tx", txs}, {"png", png}};
 }
 
 RadioMapSettings load_radiomap_settings(const std::string& path) {
@@ -142,6 +144,7 @@ RadioMapSettings load_radiomap_settings(const std::string& path) {
     else if (key == "z_min_m") s.z_min_m = number(path, full, node);
     else if (key == "z_max_m") s.z_max_m = number(path, full, node);
     else if (key == "street_margin_m") s.street_margin_m = number(path, full, node);
+    else if (key == "diffuse_block_m") s.diffuse_block_m = number(path, full, node);
     else if (key == "png") s.png = boolean(path, full, node);
     else if (key == "region") {
       s.region = text(path, full, node);
@@ -177,6 +180,8 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     throw std::invalid_argument(cfg_name + ": radiomap.z_min_m (" + std::to_string(s.z_min_m) +
                                 ") must not exceed radiomap.z_max_m (" + std::to_string(s.z_max_m) + ")");
   if (!(s.street_margin_m > 0)) throw std::invalid_argument(cfg_name + ": radiomap.street_margin_m must be > 0");
+  if (!(s.diffuse_block_m >= 0) || !std::isfinite(s.diffuse_block_m))
+    throw std::invalid_argument(cfg_name + ": radiomap.diffuse_block_m must be >= 0");
   if (s.tx.empty()) throw std::invalid_argument("radiomap: no transmitter (--tx ID,X,Y,Z or [radiomap] tx)");
   std::set<std::string> ids;
   for (auto& t : s.tx) {
@@ -242,6 +247,35 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
   spdlog::info("radio map: {} voxels ({} region, {} m, {} layers from z = {} m), {} transmitter(s)", voxels.size(),
                region, v, layers, s.z_min_m, s.tx.size());
 
+  // Diffuse scattering: the voxels where it is gathered exactly (one per
+  // block and layer, nearest the block's centre), and each voxel's.
+  const bool diffuse = trace.tracer.diffuse && trace.tracer.diffuse_integration == tracer::DiffuseIntegration::rays;
+  std::vector<std::uint32_t> diffuse_at(voxels.size());
+  std::vector<std::uint32_t> diffuse_samples;
+  if (diffuse) {
+    const double b = s.diffuse_block_m > 0 ? s.diffuse_block_m : v;
+    std::map<std::array<long, 3>, std::pair<double, std::uint32_t>> nearest;  // block -> (distance, voxel)
+    auto block_of = [&](const Voxel& x) {
+      return std::array<long, 3>{static_cast<long>(std::floor(x[0] * v / b)), static_cast<long>(std::floor(x[1] * v / b)),
+                                 static_cast<long>(x[2])};
+    };
+    for (std::size_t n = 0; n < voxels.size(); ++n) {
+      const auto key = block_of(voxels[n]);
+      const double dx = voxels[n][0] * v - (key[0] + 0.5) * b, dy = voxels[n][1] * v - (key[1] + 0.5) * b;
+      const double d = s.diffuse_block_m > 0 ? std::hypot(dx, dy) : 0.0;
+      auto [it, fresh] = nearest.try_emplace(key, d, static_cast<std::uint32_t>(n));
+      if (!fresh && d < it->second.first) it->second = {d, static_cast<std::uint32_t>(n)};
+    }
+    std::map<std::uint32_t, std::uint32_t> sample_index;  // voxel -> row in diffuse_samples
+    for (const auto& [key, dn] : nearest) sample_index.emplace(dn.second, 0);
+    for (auto& [n, row] : sample_index) {
+      row = static_cast<std::uint32_t>(diffuse_samples.size());
+      diffuse_samples.push_back(n);
+    }
+    for (std::size_t n = 0; n < voxels.size(); ++n) diffuse_at[n] = sample_index.at(nearest.at(block_of(voxels[n])).second);
+    spdlog::info("radio map: diffuse scattering gathered at {} voxels (blocks of {} m)", diffuse_samples.size(), b);
+  }
+
   // Per transmitter: path gain and LoS class at every voxel centre.
   std::vector<VdbGrid> grids;
   std::vector<float> rss(voxels.size(), kNoPathDb);
@@ -255,7 +289,20 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     node.position = tx.position;
     const auto t1 = std::chrono::steady_clock::now();
     generators::RadioMapSolveStats st;
-    const auto res = generators::solve_points(scene, node, points, trace.tracer, trace.radio, &st);
+    auto res = generators::solve_points(scene, node, points, trace.tracer, trace.radio, &st);
+    if (diffuse) {
+      std::vector<tracer::Node> nodes{node};
+      std::vector<std::uint32_t> receivers;
+      for (auto n : diffuse_samples) {
+        tracer::Node p;
+        p.id = "v" + std::to_string(n);
+        p.position = points[n];
+        receivers.push_back(static_cast<std::uint32_t>(nodes.size()));
+        nodes.push_back(p);
+      }
+      const auto power = tracer::diffuse_power(scene, nodes, 0, receivers, trace.tracer, trace.radio);
+      for (std::size_t n = 0; n < voxels.size(); ++n) res[n].gain += power[diffuse_at[n]];
+    }
     const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     solve_s += sec;
     VdbGrid pg{"path_gain_db." + tx.id, true, {}, {}, kNoPathDb, 0, json::object()};

@@ -727,3 +727,36 @@ TEST(DiffuseTiles, ReciprocalBitwise) {
   }
   EXPECT_GT(compared, 10u);
 }
+
+TEST(Diffuse, OneSourceToManyPointsEqualsTheTracedPairs) {
+  // diffuse_power (radio maps: one transmitter, many points) gives each
+  // point the diffuse power trace_pairs gives the pair, from the same rays.
+  meshkit::Scene s;
+  add_ground(s, 300);
+  add_box_object(s, {10, -20, 0}, {30, -5, 15}, "concrete", "block");
+  add_wall_y(s, 25, 200, "brick", "north");
+  tracer::TraceScene scene(s);
+  const std::vector<tracer::Node> nodes = {node("tx", {0, 0, 6}), node("p1", {40, 3, 1.5}), node("p2", {-30, -2, 2}),
+                                           node("p3", {20, 2, 1}), node("p4", {5, 20, 2.5})};
+  tracer::TracerConfig cfg;
+  cfg.path_threshold_db = 0;  // every diffuse bin kept in the traced pairs
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  std::vector<std::uint32_t> points;
+  for (std::uint32_t j = 1; j < nodes.size(); ++j) {
+    pairs.emplace_back(0, j);
+    points.push_back(j);
+  }
+  const auto snap = tracer::trace_pairs(scene, nodes, pairs, cfg, {});
+  const auto power = tracer::diffuse_power(scene, nodes, 0, points, cfg, {});
+  ASSERT_EQ(power.size(), points.size());
+  for (std::size_t q = 0; q < points.size(); ++q) {
+    double traced = 0;
+    for (const auto& path : snap.pairs[q].paths)
+      if (!path.interactions.empty() && path.interactions.back().type == tracer::InteractionType::diffuse)
+        traced += std::norm(path.a);
+    EXPECT_GT(traced, 0) << q;
+    EXPECT_NEAR(power[q], traced, 1e-9 * traced) << q;
+  }
+  cfg.diffuse = false;
+  for (double p : tracer::diffuse_power(scene, nodes, 0, points, cfg, {})) EXPECT_EQ(p, 0.0);
+}

@@ -126,6 +126,16 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
                      const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& config,
                      const RadioConfig& radio);
 
+// Diffuse power (the sum of |a|^2 of the diffuse records trace_pairs gives
+// the pairs (src, r)) at each of `receivers` from node `src`'s shoot-and-
+// bounce rays (diffuse_integration = "rays"; 0 otherwise, and beyond range):
+// one source to many points (radio maps) without the pairs' other work. As
+// in trace_pairs, src should be the lower index of each pair, whose rays
+// gather; the path threshold is not applied.
+std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Node>& nodes, std::uint32_t src,
+                                  const std::vector<std::uint32_t>& receivers, const TracerConfig& config,
+                                  const RadioConfig& radio);
+
 // The exact path from `from` to `to` reflecting on `faces` in order, or
 // nullopt when it does not exist (off a face, blocked, or over the slab cap:
 // `over_cap` says which). Exposed for tests (reciprocity, closed forms).
