@@ -950,7 +950,8 @@ ObjLabels scan_obj(const std::string& path) {
 // early makes the OFF reader add its last face again and the binary PLY reader
 // use uninitialised values, and a corrupt list length (a face "with 4 billion
 // corners") makes them loop or allocate without bound. These checks walk the
-// layout first, so only well-formed data reaches them.
+// layout first, so only well-formed data reaches them (check_ply_layout, in
+// ply_io, guards the CGAL reader the same way).
 
 std::vector<std::string> tokens_of(const std::string& line) {
   std::istringstream ss(line);
@@ -992,99 +993,6 @@ void check_off_layout(const std::string& path) {
     if (!parse_count(t[0], k) || t.size() < k + 1)
       throw InputError(path, "face " + std::to_string(f), "corner count " + quote(t[0]) + " does not match its line");
   }
-}
-
-void check_ply_layout(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "", "cannot open file");
-  auto type_size = [&](const std::string& t) -> std::size_t {
-    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
-    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-    if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" || t == "float32") return 4;
-    if (t == "double" || t == "float64") return 8;
-    throw InputError(path, "header", "unknown property type " + quote(t));
-  };
-  struct Property {
-    std::size_t count_size = 0;  // 0: scalar
-    std::size_t size = 0;        // scalar or list item
-  };
-  struct Element {
-    std::string name;
-    std::size_t count = 0;
-    std::vector<Property> properties;
-  };
-  std::vector<Element> elements;
-  std::string line, format;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return;  // the readers report non-PLY files
-  for (std::size_t number = 2; std::getline(in, line); ++number) {
-    const auto t = tokens_of(line);
-    if (t.empty()) continue;
-    const std::string where = "header line " + std::to_string(number);
-    if (t[0] == "end_header") break;
-    if (t[0] == "format" && t.size() >= 2) {
-      format = t[1];
-    } else if (t[0] == "element") {
-      Element e;
-      if (t.size() < 3 || !parse_count(t[2], e.count)) throw InputError(path, where, "malformed element line");
-      e.name = t[1];
-      elements.push_back(e);
-    } else if (t[0] == "property") {
-      if (elements.empty()) throw InputError(path, where, "property before any element");
-      Property p;
-      if (t.size() >= 5 && t[1] == "list") {
-        p.count_size = type_size(t[2]);
-        p.size = type_size(t[3]);
-      } else if (t.size() >= 3) {
-        p.size = type_size(t[1]);
-      } else {
-        throw InputError(path, where, "malformed property line");
-      }
-      elements.back().properties.push_back(p);
-    }
-  }
-  if (!in) throw InputError(path, "header", "no end_header");
-
-  if (format == "ascii") {
-    // Token-wise, as the readers read it: every list length must be covered.
-    std::vector<std::string> tokens;
-    for (std::string tok; in >> tok;) tokens.push_back(tok);
-    std::size_t at = 0;
-    for (const Element& e : elements)
-      for (std::size_t i = 0; i < e.count; ++i)
-        for (const Property& p : e.properties) {
-          const std::string where = e.name + " " + std::to_string(i);
-          if (at >= tokens.size()) throw InputError(path, where, "truncated: the file ends here");
-          if (p.count_size) {
-            std::size_t n = 0;
-            if (!parse_count(tokens[at], n)) throw InputError(path, where, "unreadable list length " + quote(tokens[at]));
-            if (n > tokens.size() - at - 1) throw InputError(path, where, "truncated: list of " + tokens[at] + " items");
-            at += n;
-          }
-          ++at;
-        }
-    return;
-  }
-  if (format != "binary_little_endian" && format != "binary_big_endian")
-    throw InputError(path, "header", "unknown format " + quote(format));
-  const bool big = format == "binary_big_endian";
-  const std::vector<unsigned char> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::size_t at = 0;
-  for (const Element& e : elements)
-    for (std::size_t i = 0; i < e.count; ++i)
-      for (const Property& p : e.properties) {
-        const std::string where = e.name + " " + std::to_string(i);
-        std::size_t n = 1;
-        if (p.count_size) {
-          if (p.count_size > data.size() - at) throw InputError(path, where, "truncated: the file ends here");
-          n = 0;
-          for (std::size_t b = 0; b < p.count_size; ++b)
-            n |= static_cast<std::size_t>(data[at + (big ? b : p.count_size - 1 - b)]) << (8 * (p.count_size - 1 - b));
-          at += p.count_size;
-        }
-        if (n > (data.size() - at) / p.size)
-          throw InputError(path, where, "truncated: the file ends here (or a corrupt list length)");
-        at += n * p.size;
-      }
 }
 
 std::mutex& openmesh_mutex() {

@@ -835,8 +835,11 @@ TEST(ModelImport, BadPolygonFilesAreInputErrors) {
     for (std::size_t i = 0; i < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
     write_ply((dir / "binary.ply").string(), cube_vertices(), tris);
     const std::string bytes = raysweep::test::read_text(dir / "binary.ply");
-    for (std::size_t cut : {5, 13, 40, 100}) {
-      write_text(dir / "short_binary.ply", bytes.substr(0, bytes.size() - cut));
+    // Every cut inside the data (ending just before a face's list length
+    // included, where the readers used to read an uninitialised count).
+    const std::size_t data_start = bytes.find("end_header\n") + 11;
+    for (std::size_t n = data_start; n < bytes.size(); ++n) {
+      write_text(dir / "short_binary.ply", bytes.substr(0, n));
       expect_input_error(dir / "short_binary.ply", "truncated");
     }
     // A corrupt list length in the middle of the faces (13 bytes per face).
