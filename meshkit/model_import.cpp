@@ -136,7 +136,35 @@ std::size_t clean_part(ImportedPart& p) {
   return dropped;
 }
 
-void finish(ImportedModel& m) {
+constexpr double kVehicleMin = 1.0, kVehicleMax = 25.0;  // metres, bicycle to semitrailer
+
+std::string unit_name(double metres_per_unit) {
+  for (const auto& [name, scale] : model_units())
+    if (scale == metres_per_unit) return name == "m" ? "metres" : name == "cm" ? "centimetres" : name == "mm" ? "millimetres" : name;
+  return number(metres_per_unit) + " m units";
+}
+
+// OBJ/PLY/OFF carry no unit. Of metres, centimetres and millimetres, the one
+// that brings the largest extent closest (by ratio) to the class length, or
+// into the 1 to 25 m of any vehicle when the class is unknown; ties keep the
+// larger unit, so a 2.5-unit toy car stays in metres.
+double guess_unit(double raw, double class_length) {
+  double best = 1.0, best_distance = INFINITY;
+  for (double scale : {1.0, 0.01, 0.001}) {
+    const double len = raw * scale;
+    const double distance = class_length > 0 ? std::abs(std::log(len / class_length))
+                            : len < kVehicleMin ? std::log(kVehicleMin / len)
+                            : len > kVehicleMax ? std::log(len / kVehicleMax)
+                                                : 0.0;
+    if (distance < best_distance - 1e-12) {
+      best = scale;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
+void finish(ImportedModel& m, const ImportOptions& options) {
   unique_names(m);
   for (const ImportedPart& p : m.parts)
     for (std::size_t i = 0; i < p.vertices.size(); ++i)
@@ -165,19 +193,38 @@ void finish(ImportedModel& m) {
     return std::max({b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]});
   };
   const double raw = extent();
-  if (raw > 100.0) {
-    // 100 units: more than any vehicle in metres; 10 000: more than any in centimetres.
-    const bool mm = raw * 0.01 > 100.0;
-    m.unit_scale = mm ? 0.001 : 0.01;
+  const bool gltf = m.up_axis == "y";
+  double scale = 1.0;
+  if (options.unit > 0) {
+    scale = options.unit;
+    m.unit_source = "given";
+  } else if (gltf) {
+    m.unit_source = "glTF (metres by specification)";
+  } else {
+    scale = guess_unit(raw, options.class_length);
+    m.unit_source = "guessed from the size";
+  }
+  if (scale != 1.0) {
+    m.unit_scale = scale;
     for (ImportedPart& p : m.parts)
       for (Vec3& v : p.vertices)
-        for (double& c : v) c *= m.unit_scale;
-    m.repairs.push_back(std::string("model in ") + (mm ? "millimetres" : "centimetres") + " (extent " + number(raw) +
-                        "): scaled by " + (mm ? "0.001" : "0.01"));
+        for (double& c : v) c *= scale;
+    m.repairs.push_back("model in " + unit_name(scale) + " (" + m.unit_source + ", extent " + number(raw) +
+                        "): scaled by " + number(scale));
   }
   const double size = extent();
   if (size < 0.05)
     throw InputError(m.path, "", "zero-size model (largest extent " + number(size) + " m after transforms)");
+  // Plausibility: within a factor of 3 of the class length, else 1 to 25 m.
+  const double lo = options.class_length > 0 ? options.class_length / 3 : kVehicleMin;
+  const double hi = options.class_length > 0 ? options.class_length * 3 : kVehicleMax;
+  if (size < lo || size > hi)
+    m.warnings.push_back("model is " + number(size) + " m long in " + unit_name(scale) + " (" + m.unit_source + "), " +
+                         (options.class_length > 0 ? "implausible for a " + options.vclass + " (about " +
+                                                         number(options.class_length) + " m)"
+                                                   : "outside the 1 to 25 m of any vehicle") +
+                         ": set its unit (--model-unit, or model_unit in [vehicles.class." +
+                         (options.vclass.empty() ? "<class>" : options.vclass) + "])");
 }
 
 // ---------------------------------------------------------------- glTF
@@ -1090,7 +1137,19 @@ void import_polygon_file(const std::string& path, const std::string& ext, Import
 
 }  // namespace
 
-ImportedModel import_model(const std::string& path) {
+const std::vector<std::pair<std::string, double>>& model_units() {
+  static const std::vector<std::pair<std::string, double>> units = {
+      {"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}, {"in", 0.0254}, {"ft", 0.3048}};
+  return units;
+}
+
+double parse_model_unit(const std::string& name) {
+  for (const auto& [n, scale] : model_units())
+    if (n == name) return scale;
+  return 0;
+}
+
+ImportedModel import_model(const std::string& path, const ImportOptions& options) {
   ImportedModel model;
   model.path = path;
   std::error_code ec;
@@ -1106,7 +1165,7 @@ ImportedModel import_model(const std::string& path) {
   } else {
     throw InputError(path, "", "unsupported model format " + quote(ext) + " (expected .gltf, .glb, .obj, .ply, .off)");
   }
-  finish(model);
+  finish(model, options);
   return model;
 }
 
