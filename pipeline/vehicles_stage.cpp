@@ -303,6 +303,7 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
   GltfOptions gopt;
   gopt.draco = cfg.draco;
   gopt.draco_position_bits = cfg.draco_position_bits;
+  if (gopt.draco) spdlog::warn("the vehicle library {}", kDracoReadersNote);
   json list = json::array();
   std::size_t done = 0;
   for (const auto& e : entries) {
