@@ -22,7 +22,10 @@
 // Values are stored bit-exactly (NaN payloads, -inf and -0 survive the round trip).
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <memory>
+#include <string>
 #include <vector>
 
 #include "generators/dataset.hpp"
@@ -30,6 +33,49 @@
 namespace raysweep::generators {
 
 inline constexpr char kFrameBlockMagic[9] = "RSWBLK4\n";
+
+// Streams frames into a block with one frame in memory at a time: append()
+// serialises a frame to path + ".tmp"; commit() writes the frame count and the
+// checksum (hashing the file back in 1 MiB chunks), fsyncs it, renames it to
+// path and fsyncs the folder. A writer destroyed before commit() removes the
+// .tmp, leaving path as it was. Throws std::runtime_error naming the file on
+// I/O errors. Same bytes as write_frame_block for the same frames.
+class FrameBlockWriter {
+ public:
+  explicit FrameBlockWriter(const std::filesystem::path& path);
+  ~FrameBlockWriter();
+  FrameBlockWriter(const FrameBlockWriter&) = delete;
+  FrameBlockWriter& operator=(const FrameBlockWriter&) = delete;
+  void append(const FrameRecord& frame);
+  void commit();
+  std::uint64_t frames() const { return frames_; }
+
+ private:
+  std::filesystem::path path_;
+  std::string tmp_;
+  int fd_ = -1;
+  std::uint64_t size_ = 0, frames_ = 0;
+};
+
+// Reads a block frame by frame: the constructor checks the magic and the
+// checksum in one chunked pass; next() decodes one frame at a time (false after
+// the last, once it has checked that nothing follows). Memory: one frame plus
+// a 1 MiB buffer, whatever the block's size. Throws meshkit::InputError naming
+// the file, as read_frame_block does.
+class FrameBlockReader {
+ public:
+  explicit FrameBlockReader(const std::filesystem::path& path);
+  ~FrameBlockReader();
+  std::uint64_t frames() const;
+  bool next(FrameRecord& frame);
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// Checks a whole block (checksum and every frame's layout) without keeping it.
+void verify_frame_block(const std::filesystem::path& path);
 
 // Writes path + ".tmp", fsyncs it, renames it to path and fsyncs the folder, so
 // path is either absent, the previous block, or the complete new block. Throws

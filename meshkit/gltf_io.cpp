@@ -137,6 +137,11 @@ int material_index(tinygltf::Model& model, const std::string& material) {
 
 }  // namespace
 
+const char* const kDracoReadersNote =
+    "uses KHR_draco_mesh_compression: raysweep reads it, but tinygltf 2.7 (Debian 12) refuses it without "
+    "meshkit::tinygltf27_draco_workaround and Debian's Blender 3.4 has no Draco decoder (libextern_draco); "
+    "leave draco off for files other tools read";
+
 double draco_position_step(const Bounds& bounds, int bits) {
   double range = 0;
   for (int k = 0; k < 3; ++k) range = std::max(range, bounds.max[k] - bounds.min[k]);
@@ -252,13 +257,15 @@ void write_u32(unsigned char* p, std::uint32_t v) {
   for (int k = 0; k < 4; ++k) p[k] = static_cast<unsigned char>(v >> (8 * k));
 }
 
+}  // namespace
+
 // tinygltf 2.7 rejects an indices accessor without a bufferView ("accessor[n]
 // invalid bufferView", tinygltf issues #328/#378, fixed upstream by PR #456 in
 // 2023), yet that is exactly what KHR_draco_mesh_compression prescribes. Draco
 // primitives do not need the accessor (the faces come from the blob), so drop
 // the reference before tinygltf sees the JSON. Anything that is not a
 // well-formed GLB is passed through untouched for tinygltf to report.
-void hide_draco_indices(std::vector<unsigned char>& glb) {
+void tinygltf27_draco_workaround(std::vector<unsigned char>& glb) {
   if (glb.size() < 20 || read_u32(&glb[0]) != 0x46546C67u || read_u32(&glb[8]) != glb.size()) return;
   const std::uint32_t json_len = read_u32(&glb[12]);
   if (read_u32(&glb[16]) != 0x4E4F534Au || json_len > glb.size() - 20) return;
@@ -287,6 +294,8 @@ void hide_draco_indices(std::vector<unsigned char>& glb) {
   write_u32(&out[16], 0x4E4F534Au);
   glb = std::move(out);
 }
+
+namespace {
 
 
 Mat4 node_matrix(const tinygltf::Node& n) {
@@ -500,7 +509,7 @@ Scene read_glb(const std::string& path) {
   if (!file) throw InputError(path, "", "cannot open glTF file");
   std::vector<unsigned char> bytes((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
   if (file.bad()) throw InputError(path, "", "read error");
-  hide_draco_indices(bytes);
+  tinygltf27_draco_workaround(bytes);
 
   tinygltf::Model model;
   tinygltf::TinyGLTF loader;

@@ -18,6 +18,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include "meshkit/scene.hpp"
 
@@ -46,6 +47,21 @@ void write_glb(const Scene& scene, const std::string& path, const GltfOptions& o
 // broken or truncated files (with tinygltf's or Draco's message), unknown
 // materials, non-triangle primitives and ids or indices out of range.
 Scene read_glb(const std::string& path);
+
+// Draco and other readers. Without Draco (the default everywhere) the files
+// open in tinygltf 2.7 and Blender 3.4 as they are. With Draco they follow
+// KHR_draco_mesh_compression (indices and POSITION accessors without a
+// bufferView) and open in Draco-capable readers (three.js, upstream Blender
+// builds), but Debian 12's tinygltf 2.7 refuses them ("accessor[n] invalid
+// bufferView", tinygltf #328, fixed upstream in 2023) and Debian's Blender 3.4
+// ships no Draco decoder. Reason for the warning the stages print:
+extern const char* const kDracoReadersNote;
+
+// The workaround for tinygltf 2.7: drops the `indices` reference of Draco
+// primitives from a GLB's JSON chunk (the faces come from the Draco blob, so
+// nothing is lost for a reader that decodes Draco). Leaves anything that is
+// not a well-formed GLB, or has no Draco primitive, untouched. read_glb uses it.
+void tinygltf27_draco_workaround(std::vector<unsigned char>& glb);
 
 // Draco's quantisation grid spacing for a mesh with these bounds: the largest
 // extent divided by 2^bits - 1.

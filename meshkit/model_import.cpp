@@ -136,7 +136,35 @@ std::size_t clean_part(ImportedPart& p) {
   return dropped;
 }
 
-void finish(ImportedModel& m) {
+constexpr double kVehicleMin = 1.0, kVehicleMax = 25.0;  // metres, bicycle to semitrailer
+
+std::string unit_name(double metres_per_unit) {
+  for (const auto& [name, scale] : model_units())
+    if (scale == metres_per_unit) return name == "m" ? "metres" : name == "cm" ? "centimetres" : name == "mm" ? "millimetres" : name;
+  return number(metres_per_unit) + " m units";
+}
+
+// OBJ/PLY/OFF carry no unit. Of metres, centimetres and millimetres, the one
+// that brings the largest extent closest (by ratio) to the class length, or
+// into the 1 to 25 m of any vehicle when the class is unknown; ties keep the
+// larger unit, so a 2.5-unit toy car stays in metres.
+double guess_unit(double raw, double class_length) {
+  double best = 1.0, best_distance = INFINITY;
+  for (double scale : {1.0, 0.01, 0.001}) {
+    const double len = raw * scale;
+    const double distance = class_length > 0 ? std::abs(std::log(len / class_length))
+                            : len < kVehicleMin ? std::log(kVehicleMin / len)
+                            : len > kVehicleMax ? std::log(len / kVehicleMax)
+                                                : 0.0;
+    if (distance < best_distance - 1e-12) {
+      best = scale;
+      best_distance = distance;
+    }
+  }
+  return best;
+}
+
+void finish(ImportedModel& m, const ImportOptions& options) {
   unique_names(m);
   for (const ImportedPart& p : m.parts)
     for (std::size_t i = 0; i < p.vertices.size(); ++i)
@@ -165,19 +193,38 @@ void finish(ImportedModel& m) {
     return std::max({b.max[0] - b.min[0], b.max[1] - b.min[1], b.max[2] - b.min[2]});
   };
   const double raw = extent();
-  if (raw > 100.0) {
-    // 100 units: more than any vehicle in metres; 10 000: more than any in centimetres.
-    const bool mm = raw * 0.01 > 100.0;
-    m.unit_scale = mm ? 0.001 : 0.01;
+  const bool gltf = m.up_axis == "y";
+  double scale = 1.0;
+  if (options.unit > 0) {
+    scale = options.unit;
+    m.unit_source = "given";
+  } else if (gltf) {
+    m.unit_source = "glTF (metres by specification)";
+  } else {
+    scale = guess_unit(raw, options.class_length);
+    m.unit_source = "guessed from the size";
+  }
+  if (scale != 1.0) {
+    m.unit_scale = scale;
     for (ImportedPart& p : m.parts)
       for (Vec3& v : p.vertices)
-        for (double& c : v) c *= m.unit_scale;
-    m.repairs.push_back(std::string("model in ") + (mm ? "millimetres" : "centimetres") + " (extent " + number(raw) +
-                        "): scaled by " + (mm ? "0.001" : "0.01"));
+        for (double& c : v) c *= scale;
+    m.repairs.push_back("model in " + unit_name(scale) + " (" + m.unit_source + ", extent " + number(raw) +
+                        "): scaled by " + number(scale));
   }
   const double size = extent();
   if (size < 0.05)
     throw InputError(m.path, "", "zero-size model (largest extent " + number(size) + " m after transforms)");
+  // Plausibility: within a factor of 3 of the class length, else 1 to 25 m.
+  const double lo = options.class_length > 0 ? options.class_length / 3 : kVehicleMin;
+  const double hi = options.class_length > 0 ? options.class_length * 3 : kVehicleMax;
+  if (size < lo || size > hi)
+    m.warnings.push_back("model is " + number(size) + " m long in " + unit_name(scale) + " (" + m.unit_source + "), " +
+                         (options.class_length > 0 ? "implausible for a " + options.vclass + " (about " +
+                                                         number(options.class_length) + " m)"
+                                                   : "outside the 1 to 25 m of any vehicle") +
+                         ": set its unit (--model-unit, or model_unit in [vehicles.class." +
+                         (options.vclass.empty() ? "<class>" : options.vclass) + "])");
 }
 
 // ---------------------------------------------------------------- glTF
@@ -950,7 +997,8 @@ ObjLabels scan_obj(const std::string& path) {
 // early makes the OFF reader add its last face again and the binary PLY reader
 // use uninitialised values, and a corrupt list length (a face "with 4 billion
 // corners") makes them loop or allocate without bound. These checks walk the
-// layout first, so only well-formed data reaches them.
+// layout first, so only well-formed data reaches them (check_ply_layout, in
+// ply_io, guards the CGAL reader the same way).
 
 std::vector<std::string> tokens_of(const std::string& line) {
   std::istringstream ss(line);
@@ -992,99 +1040,6 @@ void check_off_layout(const std::string& path) {
     if (!parse_count(t[0], k) || t.size() < k + 1)
       throw InputError(path, "face " + std::to_string(f), "corner count " + quote(t[0]) + " does not match its line");
   }
-}
-
-void check_ply_layout(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, "", "cannot open file");
-  auto type_size = [&](const std::string& t) -> std::size_t {
-    if (t == "char" || t == "uchar" || t == "int8" || t == "uint8") return 1;
-    if (t == "short" || t == "ushort" || t == "int16" || t == "uint16") return 2;
-    if (t == "int" || t == "uint" || t == "int32" || t == "uint32" || t == "float" || t == "float32") return 4;
-    if (t == "double" || t == "float64") return 8;
-    throw InputError(path, "header", "unknown property type " + quote(t));
-  };
-  struct Property {
-    std::size_t count_size = 0;  // 0: scalar
-    std::size_t size = 0;        // scalar or list item
-  };
-  struct Element {
-    std::string name;
-    std::size_t count = 0;
-    std::vector<Property> properties;
-  };
-  std::vector<Element> elements;
-  std::string line, format;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return;  // the readers report non-PLY files
-  for (std::size_t number = 2; std::getline(in, line); ++number) {
-    const auto t = tokens_of(line);
-    if (t.empty()) continue;
-    const std::string where = "header line " + std::to_string(number);
-    if (t[0] == "end_header") break;
-    if (t[0] == "format" && t.size() >= 2) {
-      format = t[1];
-    } else if (t[0] == "element") {
-      Element e;
-      if (t.size() < 3 || !parse_count(t[2], e.count)) throw InputError(path, where, "malformed element line");
-      e.name = t[1];
-      elements.push_back(e);
-    } else if (t[0] == "property") {
-      if (elements.empty()) throw InputError(path, where, "property before any element");
-      Property p;
-      if (t.size() >= 5 && t[1] == "list") {
-        p.count_size = type_size(t[2]);
-        p.size = type_size(t[3]);
-      } else if (t.size() >= 3) {
-        p.size = type_size(t[1]);
-      } else {
-        throw InputError(path, where, "malformed property line");
-      }
-      elements.back().properties.push_back(p);
-    }
-  }
-  if (!in) throw InputError(path, "header", "no end_header");
-
-  if (format == "ascii") {
-    // Token-wise, as the readers read it: every list length must be covered.
-    std::vector<std::string> tokens;
-    for (std::string tok; in >> tok;) tokens.push_back(tok);
-    std::size_t at = 0;
-    for (const Element& e : elements)
-      for (std::size_t i = 0; i < e.count; ++i)
-        for (const Property& p : e.properties) {
-          const std::string where = e.name + " " + std::to_string(i);
-          if (at >= tokens.size()) throw InputError(path, where, "truncated: the file ends here");
-          if (p.count_size) {
-            std::size_t n = 0;
-            if (!parse_count(tokens[at], n)) throw InputError(path, where, "unreadable list length " + quote(tokens[at]));
-            if (n > tokens.size() - at - 1) throw InputError(path, where, "truncated: list of " + tokens[at] + " items");
-            at += n;
-          }
-          ++at;
-        }
-    return;
-  }
-  if (format != "binary_little_endian" && format != "binary_big_endian")
-    throw InputError(path, "header", "unknown format " + quote(format));
-  const bool big = format == "binary_big_endian";
-  const std::vector<unsigned char> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  std::size_t at = 0;
-  for (const Element& e : elements)
-    for (std::size_t i = 0; i < e.count; ++i)
-      for (const Property& p : e.properties) {
-        const std::string where = e.name + " " + std::to_string(i);
-        std::size_t n = 1;
-        if (p.count_size) {
-          if (p.count_size > data.size() - at) throw InputError(path, where, "truncated: the file ends here");
-          n = 0;
-          for (std::size_t b = 0; b < p.count_size; ++b)
-            n |= static_cast<std::size_t>(data[at + (big ? b : p.count_size - 1 - b)]) << (8 * (p.count_size - 1 - b));
-          at += p.count_size;
-        }
-        if (n > (data.size() - at) / p.size)
-          throw InputError(path, where, "truncated: the file ends here (or a corrupt list length)");
-        at += n * p.size;
-      }
 }
 
 std::mutex& openmesh_mutex() {
@@ -1182,7 +1137,19 @@ void import_polygon_file(const std::string& path, const std::string& ext, Import
 
 }  // namespace
 
-ImportedModel import_model(const std::string& path) {
+const std::vector<std::pair<std::string, double>>& model_units() {
+  static const std::vector<std::pair<std::string, double>> units = {
+      {"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}, {"in", 0.0254}, {"ft", 0.3048}};
+  return units;
+}
+
+double parse_model_unit(const std::string& name) {
+  for (const auto& [n, scale] : model_units())
+    if (n == name) return scale;
+  return 0;
+}
+
+ImportedModel import_model(const std::string& path, const ImportOptions& options) {
   ImportedModel model;
   model.path = path;
   std::error_code ec;
@@ -1198,7 +1165,7 @@ ImportedModel import_model(const std::string& path) {
   } else {
     throw InputError(path, "", "unsupported model format " + quote(ext) + " (expected .gltf, .glb, .obj, .ply, .off)");
   }
-  finish(model);
+  finish(model, options);
   return model;
 }
 

@@ -24,13 +24,17 @@
 // parsers feed a polygon soup here, not an OpenMesh TriMesh (which detaches
 // "complex edge" faces and drops faces with repeated or invalid indices).
 //
-// Units heuristic. Vehicles are 1 to 25 m long, so after all transforms the
-// largest bounding-box extent tells the unit: above 100 the model cannot be in
-// metres and is taken as centimetres (scaled by 0.01, unit_scale = 0.01, noted
-// in `repairs`); if it would still exceed 100 m it is taken as millimetres
-// (0.001). Below 0.05 the model is an InputError ("zero-size model"). Toy- or
-// game-scale models in metres (a 2.5 m car) are left alone: the heuristic only
-// fixes unit errors, not modelling scale.
+// Units. The model's own unit is asked first: a unit given by the caller
+// (ImportOptions::unit: --model-unit, model_unit in the vehicles config) wins;
+// glTF is metres by specification and is never rescaled otherwise; OBJ/PLY/OFF
+// carry no unit, so it is guessed: of metres, centimetres and millimetres, the
+// one that brings the largest bounding-box extent (after all transforms)
+// closest by ratio to the class length when it is known, else into the 1 to
+// 25 m of any vehicle (ties keep the larger unit, so a 2.5 m game-scale car
+// stays in metres). A rescale is noted in `repairs`; a result outside a factor
+// of 3 of the class length (else outside 1 to 25 m) is a warning that names
+// the unit and how to set it. Below 0.05 m the model is an InputError
+// ("zero-size model").
 //
 // Thread safety: OBJ/PLY/OFF go through OpenMesh's reader singletons and are
 // serialised by a mutex; glTF import is reentrant.
@@ -38,6 +42,7 @@
 
 #include <cstddef>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "meshkit/scene.hpp"
@@ -56,6 +61,7 @@ struct ImportedModel {
   std::string path;
   std::vector<ImportedPart> parts;
   double unit_scale = 1.0;        // applied to reach metres (0.01 for a centimetre model)
+  std::string unit_source;        // "given", "glTF (metres by specification)" or "guessed from the size"
   std::string up_axis = "z";      // axis the file used as up before conversion ("y" for glTF)
   std::vector<std::string> repairs;   // counted, documented repairs ("dropped 12 degenerate triangles in part X")
   std::vector<std::string> warnings;  // each names the part
@@ -64,8 +70,19 @@ struct ImportedModel {
   std::size_t triangle_count() const;
 };
 
+// Length units a model file may be in, as metres per unit: m, dm, cm, mm, in, ft.
+const std::vector<std::pair<std::string, double>>& model_units();
+// Metres per unit for one of model_units()' names; 0 for an unknown name.
+double parse_model_unit(const std::string& name);
+
+struct ImportOptions {
+  double unit = 0;          // metres per file unit; 0: the file's own (glTF) or guessed (OBJ/PLY/OFF)
+  std::string vclass;       // for messages ("a bus")
+  double class_length = 0;  // metres; 0: unknown (plausible range 1 to 25 m)
+};
+
 // Throws InputError (file + element) for unreadable, truncated or malformed
 // files, missing buffers, and models with no triangles or zero size.
-ImportedModel import_model(const std::string& path);
+ImportedModel import_model(const std::string& path, const ImportOptions& options = {});
 
 }  // namespace raysweep::meshkit

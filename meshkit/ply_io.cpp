@@ -4,7 +4,9 @@
 #include <CGAL/Simple_cartesian.h>
 
 #include <array>
+#include <charconv>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "meshkit/errors.hpp"
@@ -95,7 +97,142 @@ void check_header(std::istream& in, const std::string& path) {
   (void)has_face;  // a PLY without faces is a valid, empty mesh
 }
 
+std::vector<std::string> words_of(const std::string& line) {
+  std::istringstream ss(line);
+  std::vector<std::string> out;
+  for (std::string t; ss >> t;) out.push_back(t);
+  return out;
+}
+
+// A scalar type's size and signedness; throws for unknown types.
+struct ScalarType {
+  std::size_t size = 0;
+  bool is_signed = false;
+};
+
+ScalarType scalar_type(const std::string& t, const std::string& path, const std::string& where) {
+  if (t == "char" || t == "int8") return {1, true};
+  if (t == "uchar" || t == "uint8") return {1, false};
+  if (t == "short" || t == "int16") return {2, true};
+  if (t == "ushort" || t == "uint16") return {2, false};
+  if (t == "int" || t == "int32") return {4, true};
+  if (t == "uint" || t == "uint32") return {4, false};
+  if (t == "float" || t == "float32") return {4, true};
+  if (t == "double" || t == "float64") return {8, true};
+  throw InputError(path, where, "unknown property type '" + t + "'");
+}
+
 }  // namespace
+
+void check_ply_layout(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path, "", "cannot open PLY file");
+  struct Property {
+    ScalarType count;  // size 0: a scalar property
+    ScalarType item;
+  };
+  struct Element {
+    std::string name;
+    std::size_t count = 0;
+    std::vector<Property> properties;
+  };
+  std::vector<Element> elements;
+  std::string line, format;
+  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return;  // the readers report non-PLY files
+  bool ended = false;
+  for (std::size_t number = 2; std::getline(in, line); ++number) {
+    const auto t = words_of(line);
+    if (t.empty()) continue;
+    const std::string where = "header line " + std::to_string(number);
+    if (t[0] == "end_header") {
+      ended = true;
+      break;
+    }
+    if (t[0] == "format" && t.size() >= 2) {
+      format = t[1];
+    } else if (t[0] == "element") {
+      Element e;
+      std::size_t count = 0;
+      const auto [ptr, ec] = t.size() < 3 ? std::from_chars_result{nullptr, std::errc::invalid_argument}
+                                          : std::from_chars(t[2].data(), t[2].data() + t[2].size(), count);
+      if (ec != std::errc() || ptr != t[2].data() + t[2].size())
+        throw InputError(path, where, "malformed element line");
+      e.name = t[1];
+      e.count = count;
+      elements.push_back(e);
+    } else if (t[0] == "property") {
+      if (elements.empty()) throw InputError(path, where, "property before any element");
+      Property p;
+      if (t.size() >= 5 && t[1] == "list") {
+        p.count = scalar_type(t[2], path, where);
+        if (t[2] == "float" || t[2] == "float32" || t[2] == "double" || t[2] == "float64")
+          throw InputError(path, where, "list length type '" + t[2] + "' is not an integer type");
+        p.item = scalar_type(t[3], path, where);
+      } else if (t.size() >= 3) {
+        p.item = scalar_type(t[1], path, where);
+      } else {
+        throw InputError(path, where, "malformed property line");
+      }
+      elements.back().properties.push_back(p);
+    }
+  }
+  if (!ended) throw InputError(path, "header", "no end_header (file truncated?)");
+  for (const Element& e : elements)  // the readers would loop over them, reading nothing
+    if (e.count > 0 && e.properties.empty())
+      throw InputError(path, "element " + e.name, "has " + std::to_string(e.count) + " items but no properties");
+
+  if (format == "ascii") {
+    // Token-wise, as the readers read it: every list length must be a
+    // non-negative integer that fits its type, and its items must follow.
+    std::vector<std::string> tokens;
+    for (std::string tok; in >> tok;) tokens.push_back(tok);
+    std::size_t at = 0;
+    for (const Element& e : elements)
+      for (std::size_t i = 0; i < e.count; ++i)
+        for (const Property& p : e.properties) {
+          const std::string where = e.name + " " + std::to_string(i);
+          if (at >= tokens.size()) throw InputError(path, where, "truncated: the file ends here");
+          if (p.count.size) {
+            const std::string& tok = tokens[at];
+            std::size_t n = 0;
+            const auto [ptr, ec] = std::from_chars(tok.data(), tok.data() + tok.size(), n);
+            if (ec != std::errc() || ptr != tok.data() + tok.size())
+              throw InputError(path, where, "unreadable list length '" + tok + "'");
+            const unsigned bits = 8 * static_cast<unsigned>(p.count.size) - (p.count.is_signed ? 1 : 0);
+            if (bits < 64 && n >> bits)
+              throw InputError(path, where, "list length " + tok + " does not fit its type");
+            if (n > tokens.size() - at - 1) throw InputError(path, where, "truncated: list of " + tok + " items");
+            at += n;
+          }
+          ++at;
+        }
+    return;
+  }
+  if (format != "binary_little_endian" && format != "binary_big_endian")
+    throw InputError(path, "header", "unknown format '" + format + "'");
+  const bool big = format == "binary_big_endian";
+  const std::vector<unsigned char> data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  std::size_t at = 0;
+  for (const Element& e : elements)
+    for (std::size_t i = 0; i < e.count; ++i)
+      for (const Property& p : e.properties) {
+        const std::string where = e.name + " " + std::to_string(i);
+        std::size_t n = 1;
+        if (p.count.size) {
+          const std::size_t cs = p.count.size;
+          if (cs > data.size() - at) throw InputError(path, where, "truncated: the file ends here");
+          n = 0;
+          for (std::size_t b = 0; b < cs; ++b)
+            n |= static_cast<std::size_t>(data[at + (big ? b : cs - 1 - b)]) << (8 * (cs - 1 - b));
+          if (p.count.is_signed && (n >> (8 * cs - 1)))
+            throw InputError(path, where, "negative list length (corrupt data)");
+          at += cs;
+        }
+        if (n > (data.size() - at) / p.item.size)
+          throw InputError(path, where, "truncated: the file ends here (or a corrupt list length)");
+        at += n * p.item.size;
+      }
+}
 
 PlyMesh read_ply(const std::string& path) {
   using Point = CGAL::Simple_cartesian<double>::Point_3;
@@ -104,6 +241,7 @@ PlyMesh read_ply(const std::string& path) {
     if (!header) throw InputError(path, "", "cannot open PLY file");
     check_header(header, path);
   }
+  check_ply_layout(path);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "", "cannot open PLY file");
   CGAL::IO::set_mode(in, CGAL::IO::BINARY);

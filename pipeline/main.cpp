@@ -91,6 +91,9 @@ int main(int argc, char** argv) {
   auto* vc = app.add_subcommand("vehicles", "build the vehicle library: one GLB per class and LOD + manifest");
   vc->add_option("--out", vehicles.out, "output library folder")->required();
   vc->add_option("--model", vehicles.models, "CLASS=FILE: use a glTF/GLB/OBJ/PLY/OFF model for a class");
+  vc->add_option("--model-unit", vehicles.model_units,
+                 "[CLASS=]UNIT: a model file's length unit (m, dm, cm, mm, in, ft); glTF is metres, OBJ/PLY/OFF "
+                 "are guessed from the size otherwise");
   vc->add_option("--vtypes", vehicles.vtypes, "SUMO file with <vType> elements: one entry per vType");
   vc->add_option("--config", vehicles.config, "TOML config ([vehicles] table)");
   vc->add_flag("--no-preview", vehicles_no_preview, "skip preview.png");

@@ -145,6 +145,7 @@ json run_scene_stage(const SceneArgs& args, const std::vector<std::string>& argv
   meshkit::GltfOptions gopt;
   gopt.draco = cfg.draco;
   gopt.draco_position_bits = cfg.draco_position_bits;
+  if (gopt.draco) spdlog::warn("scene.glb {}", meshkit::kDracoReadersNote);
   meshkit::write_glb(scene, (out.path() / "scene.glb").string(), gopt);
   meshkit::write_mitsuba(scene, (out.path() / "mitsuba").string());
   const auto t1 = std::chrono::steady_clock::now();

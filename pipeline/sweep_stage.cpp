@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <map>
 #include <set>
 
@@ -294,7 +295,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   SweepSelection selection(cfg, bounds, args.fcd);
 
   generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
-  std::vector<generators::FrameRecord> block;
+  std::optional<generators::FrameBlockWriter> block;  // streamed to disk: one frame in memory
   std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0;
   bool skipping_block = false;
   json block_stats = json::array();
@@ -304,8 +305,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
 
   generators::SweepStats before;  // sweep statistics at the start of the block
   auto commit_block = [&]() {
-    if (block.empty()) return;
-    const fs::path file = parts / (block_name(block_index) + ".bin");
+    if (!block) return;
     const auto& s = sweep.stats();
     const json st = {{"frames", s.frames - before.frames},
                      {"links", s.links - before.links},
@@ -316,8 +316,8 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
                      {"trace_seconds", s.trace_seconds - before.trace_seconds}};
     before = s;
     write_file_atomic(parts / (block_name(block_index) + ".json"), st.dump() + "\n");
-    generators::write_frame_block(file, block);
-    block.clear();
+    block->commit();
+    block.reset();
     // Test hook: die like `kill -9` right after a given number of commits.
     static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
     static int committed = 0;
@@ -334,7 +334,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       if (!skipping_block && args.resume && fs::exists(parts / (block_name(block_index) + ".bin")) &&
           fs::exists(parts / (block_name(block_index) + ".json"))) {
         try {
-          generators::read_frame_block(parts / (block_name(block_index) + ".bin"));
+          generators::verify_frame_block(parts / (block_name(block_index) + ".bin"));
           skipping_block = true;
           ++blocks_resumed;
         } catch (const meshkit::InputError& e) {
@@ -370,7 +370,10 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       sv.height_m = tm->height_m;
       vehicles.push_back(sv);
     }
-    if (!skipping_block) block.push_back(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
+    if (!skipping_block) {
+      if (!block) block.emplace(parts / (block_name(block_index) + ".bin"));
+      block->append(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
+    }
     ++frame_index;
 
     const auto now = std::chrono::steady_clock::now();
@@ -432,7 +435,8 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
     generators::DatasetWriter writer(tmp, header);
     for (std::uint64_t b = 0; b <= block_index; ++b) {
       if (!mine(b)) continue;
-      for (const auto& f : generators::read_frame_block(parts / (block_name(b) + ".bin"))) writer.append(f);
+      generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
+      for (generators::FrameRecord f; blocks.next(f);) writer.append(f);
       std::ifstream in(parts / (block_name(b) + ".json"));
       const json st = json::parse(in);
       for (auto& [k, v] : totals.items()) {

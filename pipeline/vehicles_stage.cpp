@@ -34,6 +34,12 @@ namespace {
 
 json dims_json(const VehicleDims& d) { return {{"length", d.length}, {"width", d.width}, {"height", d.height}}; }
 
+std::string unit_names() {
+  std::string out;
+  for (const auto& [name, scale] : model_units()) out += (out.empty() ? "" : ", ") + name;
+  return out;
+}
+
 }  // namespace
 
 VehiclesConfig load_vehicles_config(const std::string& path) {
@@ -120,6 +126,11 @@ VehiclesConfig load_vehicles_config(const std::string& path) {
             if (!a || a->size() != 3) throw ConfigError(where(path, pfull, pv) + ": expected [x, y, z]");
             e.antenna = Vec3{number(path, pfull, *a->get(0)), number(path, pfull, *a->get(1)),
                              number(path, pfull, *a->get(2))};
+          } else if (pname == "model_unit") {
+            auto u = pv.value<std::string>();
+            if (!u || parse_model_unit(*u) <= 0)
+              throw ConfigError(where(path, pfull, pv) + ": expected a unit: " + unit_names());
+            e.model_unit = *u;
           } else {
             throw ConfigError(where(path, pfull, pv) + ": unknown key");
           }
@@ -140,6 +151,7 @@ json VehiclesConfig::to_json() const {
   for (const auto& [name, e] : entries) {
     entries_j[name] = dims_json(e.dims);
     if (e.antenna) entries_j[name]["antenna"] = *e.antenna;
+    if (!e.model_unit.empty()) entries_j[name]["model_unit"] = e.model_unit;
   }
   return {{"classes", classes},        {"lod_ratios", lod_ratios},           {"lod_tolerance_m", lod_tolerance_m}, {"lod_max_error_m", lod_max_error_m},
           {"antenna_offset_m", antenna_offset_m}, {"scale_to_class", scale_to_class}, {"draco", draco},
@@ -166,7 +178,11 @@ BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, c
     rec["source"] = "parametric";
     rec["archetype"] = info->archetype;
   } else {
-    ImportedModel imp = import_model(model_file);
+    ImportOptions iopt;
+    iopt.unit = entry.model_unit.empty() ? 0 : parse_model_unit(entry.model_unit);
+    iopt.vclass = vclass;
+    iopt.class_length = dims.length;
+    ImportedModel imp = import_model(model_file, iopt);
     m.name = name;
     m.vclass = vclass;
     m.source = model_file;
@@ -178,6 +194,7 @@ BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, c
     m.antenna = roof_mount(m, -m.dims().length / 2, 0, cfg.antenna_offset_m);
     rec["source"] = model_file;
     rec["unit_scale"] = imp.unit_scale;
+    rec["unit_source"] = imp.unit_source;
     rec["file_up_axis"] = imp.up_axis;
     rec["native_dims"] = dims_json(norm.native);
     rec["scale"] = norm.scale;
@@ -259,10 +276,34 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
     if (e.dims.height <= 0) e.dims.height = vt.height;
   }
 
+  // Model units: a bare UNIT for every model, then the config's, then CLASS=UNIT.
+  std::string every_unit;
+  std::map<std::string, std::string> class_unit;
+  for (const auto& spec : args.model_units) {
+    const auto eq = spec.find('=');
+    const std::string cls = eq == std::string::npos ? "" : spec.substr(0, eq);
+    const std::string unit = eq == std::string::npos ? spec : spec.substr(eq + 1);
+    if (parse_model_unit(unit) <= 0)
+      throw std::invalid_argument("--model-unit " + spec + ": unknown unit '" + unit + "' (expected " + unit_names() + ")");
+    if (eq == std::string::npos) every_unit = unit;
+    else if (std::none_of(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == cls && !e.file.empty(); }))
+      throw std::invalid_argument("--model-unit " + spec + ": no --model for '" + cls + "'");
+    else class_unit[cls] = unit;
+  }
+  for (const auto& e : entries) {
+    if (e.file.empty()) continue;
+    const auto configured = effective.entries.find(e.name);
+    std::string unit = configured == effective.entries.end() ? "" : configured->second.model_unit;
+    if (auto it = class_unit.find(e.name); it != class_unit.end()) unit = it->second;
+    else if (unit.empty()) unit = every_unit;
+    if (!unit.empty()) effective.entries[e.name].model_unit = unit;
+  }
+
   StagedDirectory out(args.out);
   GltfOptions gopt;
   gopt.draco = cfg.draco;
   gopt.draco_position_bits = cfg.draco_position_bits;
+  if (gopt.draco) spdlog::warn("the vehicle library {}", kDracoReadersNote);
   json list = json::array();
   std::size_t done = 0;
   for (const auto& e : entries) {

@@ -17,6 +17,7 @@ namespace raysweep::pipeline {
 struct VehicleEntryConfig {
   meshkit::VehicleDims dims;         // zero components: the class default
   std::optional<meshkit::Vec3> antenna;  // explicit mount in the library frame
+  std::string model_unit;            // the imported model file's unit ("mm"); empty: its own or guessed
 };
 
 struct VehiclesConfig {
@@ -40,6 +41,9 @@ struct VehiclesArgs {
   std::string out;
   std::string config;
   std::vector<std::string> models;  // CLASS=FILE
+  // [CLASS=]UNIT: a model file's length unit. CLASS=UNIT wins over model_unit
+  // in [vehicles.class.CLASS], which wins over a bare UNIT (every model).
+  std::vector<std::string> model_units;
   std::string vtypes;               // SUMO file with <vType> elements
   bool preview = true;
 };

@@ -98,3 +98,60 @@ TEST(CliVehicles, BadInputIsAClearErrorAndWritesNothing) {
   EXPECT_NE(r.output.find("adamantium"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "lib"));
 }
+
+// --model-unit and model_unit: the unit a model file is in reaches the
+// manifest (unit_scale, unit_source) and the built dimensions; unknown units
+// and classes without a model are usage errors.
+TEST(CliVehicles, ModelUnitFromCliAndConfig) {
+  auto dir = scratch_dir("veh_units");
+  // A 4500 x 1800 x 1500 box: a car in millimetres.
+  std::string obj;
+  for (int i = 0; i < 8; ++i)
+    obj += "v " + std::to_string(i & 1 ? 4500 : 0) + " " + std::to_string(i & 2 ? 1800 : 0) + " " +
+           std::to_string(i & 4 ? 1500 : 0) + "\n";
+  obj += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+  write_text(dir / "car.obj", obj);
+  write_text(dir / "c.toml", "[vehicles]\nclasses = [\"passenger\"]\nscale_to_class = false\n");
+  const std::string base = "-q vehicles --no-preview --config " + (dir / "c.toml").string() + " --model passenger=" +
+                           (dir / "car.obj").string();
+  auto manifest_entry = [&](const std::string& lib) {
+    return json::parse(read_text(dir / lib / "manifest.json"))["vehicles"][0];
+  };
+  auto r = run_raysweep(base + " --out " + (dir / "guess").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  json v = manifest_entry("guess");
+  EXPECT_DOUBLE_EQ(v["unit_scale"].get<double>(), 0.001);
+  EXPECT_EQ(v["unit_source"], "guessed from the size");
+  EXPECT_NEAR(v["dims"]["length"].get<double>(), 4.5, 1e-6);
+
+  r = run_raysweep(base + " --model-unit cm --out " + (dir / "cm").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  v = manifest_entry("cm");
+  EXPECT_DOUBLE_EQ(v["unit_scale"].get<double>(), 0.01);
+  EXPECT_EQ(v["unit_source"], "given");
+  EXPECT_NE(r.output.find("implausible for a passenger"), std::string::npos) << r.output;
+
+  write_text(dir / "d.toml", "[vehicles]\nclasses = [\"passenger\"]\nscale_to_class = false\n"
+                             "[vehicles.class.passenger]\nmodel_unit = \"mm\"\n");
+  r = run_raysweep("-q vehicles --no-preview --config " + (dir / "d.toml").string() + " --model passenger=" +
+                   (dir / "car.obj").string() + " --model-unit cm --out " + (dir / "cfg").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  v = manifest_entry("cfg");
+  EXPECT_DOUBLE_EQ(v["unit_scale"].get<double>(), 0.001) << "the class's model_unit wins over a bare --model-unit";
+  r = run_raysweep("-q vehicles --no-preview --config " + (dir / "d.toml").string() + " --model passenger=" +
+                   (dir / "car.obj").string() + " --model-unit passenger=cm --out " + (dir / "cli").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_DOUBLE_EQ(manifest_entry("cli")["unit_scale"].get<double>(), 0.01) << "CLASS=UNIT wins over the config";
+
+  r = run_raysweep(base + " --model-unit furlong --out " + (dir / "bad").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("furlong"), std::string::npos) << r.output;
+  r = run_raysweep(base + " --model-unit bus=mm --out " + (dir / "bad").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("no --model for 'bus'"), std::string::npos) << r.output;
+  write_text(dir / "e.toml", "[vehicles.class.bus]\nmodel_unit = \"cubit\"\n");
+  r = run_raysweep("-q vehicles --config " + (dir / "e.toml").string() + " --out " + (dir / "bad").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("model_unit"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "bad"));
+}

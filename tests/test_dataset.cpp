@@ -784,6 +784,66 @@ TEST(FrameBlock, RoundTripIsExact) {
   EXPECT_TRUE(read_frame_block(p).empty());
 }
 
+// The streaming writer (one frame in memory) writes the documented layout:
+// magic, the frame count it only knows at commit, and an FNV-1a 64 trailer
+// over every byte before it, checked here with an independent hash. Frames
+// larger than the reader's 1 MiB chunk come back exactly, frame by frame.
+TEST(FrameBlock, StreamedBlockMatchesLayoutAndReadsBackInChunks) {
+  const fs::path dir = tmp_dir("blockstream");
+  Builder b;
+  auto frames = b.frames();
+  // A frame of 60,000 paths (2.2 MB encoded) spans several read chunks.
+  FrameRecord big = frames.back();
+  big.time_s += 1;
+  big.links.resize(1);
+  big.links[0].path_count = 60000;
+  big.paths.assign(60000, frames[0].paths[0]);
+  for (std::size_t i = 0; i < big.paths.size(); ++i) big.paths[i].tau_s = 1e-9 * static_cast<double>(i);
+  big.interactions.clear();
+  for (auto& p : big.paths) p.interaction_count = 0;
+  frames.push_back(big);
+  frames.push_back(frames[0]);
+  frames.back().time_s = big.time_s + 1;
+
+  const fs::path p = dir / "stream.blk";
+  {
+    FrameBlockWriter w(p);
+    for (const auto& f : frames) w.append(f);
+    EXPECT_FALSE(fs::exists(p)) << "nothing at the final path before commit";
+    EXPECT_TRUE(fs::exists(p.string() + ".tmp"));
+    EXPECT_EQ(w.frames(), frames.size());
+    w.commit();
+  }
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  const std::string bytes = read_bytes(p);
+  ASSERT_GT(bytes.size(), 2u << 20);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
+  auto le64 = [&](std::size_t at) {
+    std::uint64_t v = 0;
+    for (int i = 0; i < 8; ++i) v |= std::uint64_t(static_cast<unsigned char>(bytes[at + i])) << (8 * i);
+    return v;
+  };
+  EXPECT_EQ(le64(8), frames.size());
+  std::uint64_t h = 14695981039346656037ull;
+  for (std::size_t i = 0; i + 8 < bytes.size(); ++i) h = (h ^ static_cast<unsigned char>(bytes[i])) * 1099511628211ull;
+  EXPECT_EQ(le64(bytes.size() - 8), h);
+
+  FrameBlockReader r(p);
+  EXPECT_EQ(r.frames(), frames.size());
+  std::vector<FrameRecord> back;
+  for (FrameRecord f; r.next(f);) back.push_back(f);
+  expect_same(frames, back);
+  EXPECT_NO_THROW(verify_frame_block(p));
+
+  // A writer dropped before commit (a failed frame) leaves the old block as it was.
+  {
+    FrameBlockWriter w(p);
+    w.append(frames[0]);
+  }
+  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
+  EXPECT_EQ(read_bytes(p), bytes);
+}
+
 TEST(FrameBlock, TruncatedOrCorruptBlocksAreRejected) {
   const fs::path dir = tmp_dir("blockbad");
   Builder b;

@@ -300,6 +300,70 @@ TEST(MitsubaPly, AsciiPolygonsWithExtraPropertiesAreFanned) {
   EXPECT_EQ(read_ply((dir / "dup.ply").string()).triangles.size(), 3u);
 }
 
+// Every proper prefix of a PLY file is an InputError naming the file, on
+// both PLY paths (read_ply and a Mitsuba scene's shapes): CGAL's reader used
+// to read an uninitialised list length when a binary file ended just before a
+// face. For ascii, any cut before the last token's start drops a needed token.
+TEST(MitsubaPly, EveryTruncationIsAnInputError) {
+  const fs::path dir = temp_dir("ply_cuts");
+  write_ply((dir / "q.ply").string(), {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 1, 0}}, {{0, 1, 2}, {0, 2, 3}});
+  const std::string binary = read_text(dir / "q.ply");
+  const std::string ascii =
+      "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 2\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2\n3 0 2 3\n";
+  ASSERT_EQ(read_ply((dir / "q.ply").string()).triangles.size(), 2u);
+  write_text(dir / "a.ply", ascii);
+  ASSERT_EQ(read_ply((dir / "a.ply").string()).triangles.size(), 2u);
+  const std::string cut = (dir / "cut.ply").string();
+  int cases = 0;
+  for (std::size_t n = 0; n < binary.size(); ++n, ++cases) {
+    write_text(cut, binary.substr(0, n));
+    expect_input_error([&] { read_ply(cut); }, {cut});
+  }
+  const std::size_t last_token = ascii.find_last_not_of("\n ") ;  // the final "3"
+  for (std::size_t n = 0; n <= last_token; ++n, ++cases) {
+    write_text(cut, ascii.substr(0, n));
+    expect_input_error([&] { read_ply(cut); }, {cut});
+  }
+  EXPECT_GT(cases, 150);
+  // Cut just before the second face's list length: the case CGAL read uninitialised.
+  write_text(dir / "meshes" / "cut.ply", binary.substr(0, binary.size() - 13));
+  write_text(dir / "scene.xml",
+             scene_xml(kConcreteBsdf,
+                       ply_shape("mesh-Cut", "meshes/cut.ply", "<ref id=\"mat-itu_concrete\" name=\"bsdf\"/>")));
+  expect_input_error([&] { read_mitsuba((dir / "scene.xml").string()); }, {"mesh-Cut", "cut.ply", "face 1", "truncated"});
+}
+
+// Corrupt counts that no truncation produces: a negative signed list length,
+// a length that does not fit its type, a float length type, and an element
+// with a huge count but no properties (the readers would loop over it).
+TEST(MitsubaPly, CorruptCountsAreInputErrors) {
+  const fs::path dir = temp_dir("ply_counts");
+  const std::string head = "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n"
+                           "property float y\nproperty float z\nelement face 1\n";
+  std::string verts(36, '\0');
+  auto bad = [&](const std::string& name, const std::string& content, const std::string& needle) {
+    write_text(dir / name, content);
+    expect_input_error([&] { read_ply((dir / name).string()); }, {(dir / name).string(), needle});
+  };
+  bad("negative.ply", head + "property list char int vertex_indices\nend_header\n" + verts + "\xff" + std::string(12, '\0'),
+      "face 0: negative list length");
+  bad("float_count.ply", head + "property list float int vertex_indices\nend_header\n" + verts, "not an integer");
+  bad("empty_element.ply",
+      "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+      "element junk 99999999999999\nend_header\n",
+      "element junk");
+  bad("overflow.ply",
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n259 0 1 2\n",
+      "face 0: list length 259 does not fit");
+  bad("minus.ply",
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n-3 0 1 2\n",
+      "face 0: unreadable list length");
+}
+
 TEST(MitsubaPly, BinaryRoundTripAndErrors) {
   const fs::path dir = temp_dir("ply_errors");
   const std::vector<Vec3> v = {{0.1, 0.2, 0.3}, {1e3, -2e3, 5.5}, {7, 8, 9}, {-1, -2, -3}};

@@ -486,20 +486,69 @@ TEST(ModelImport, DracoAndRaysweepGlbRoundTrip) {
 
 // ---------------------------------------------------------------- units and repairs
 
-TEST(ModelImport, CentimetreModelIsScaled) {
+// glTF is metres by specification: a 450-unit glTF is not rescaled on a
+// guess but warned about, and takes the unit it is given.
+TEST(ModelImport, GltfIsMetresUnlessTheUnitIsGiven) {
   const fs::path dir = scratch_dir("cm");
   GltfWriter w;
   const int pos = w.positions({{0, 0, 0}, {180, 0, 0}, {180, 150, 0}, {0, 150, 0}, {0, 0, 450}, {180, 0, 450}});
   w.node({{"name", "Car"}, {"mesh", w.mesh("", {GltfWriter::prim(pos, w.indices({0, 1, 2, 0, 2, 3, 0, 4, 5, 0, 5, 1}))})}});
   w.scene({0});
-  const ImportedModel m = import_model(w.write_gltf(dir, "cm.gltf").string());
+  const std::string file = w.write_gltf(dir, "cm.gltf").string();
+  const ImportedModel as_is = import_model(file, {0, "passenger", 5.0});
+  EXPECT_EQ(as_is.unit_scale, 1.0);
+  EXPECT_EQ(as_is.unit_source, "glTF (metres by specification)");
+  EXPECT_TRUE(contains(as_is.warnings, "model is 450 m long in metres", "implausible for a passenger (about 5 m)"))
+      << ::testing::PrintToString(as_is.warnings);
+  EXPECT_TRUE(contains(as_is.warnings, "--model-unit", "model_unit in [vehicles.class.passenger]"));
+
+  const ImportedModel m = import_model(file, {parse_model_unit("cm"), "passenger", 5.0});
   EXPECT_DOUBLE_EQ(m.unit_scale, 0.01);
-  EXPECT_TRUE(contains(m.repairs, "model in centimetres (extent 450)", "scaled by 0.01"))
+  EXPECT_EQ(m.unit_source, "given");
+  EXPECT_TRUE(contains(m.repairs, "model in centimetres (given, extent 450)", "scaled by 0.01"))
       << ::testing::PrintToString(m.repairs);
+  EXPECT_TRUE(m.warnings.empty()) << ::testing::PrintToString(m.warnings);
   const Bounds b = m.bounds();
   EXPECT_NEAR(b.max[0] - b.min[0], 4.5, 1e-9);  // glTF z (length) -> x
   EXPECT_NEAR(b.max[1] - b.min[1], 1.8, 1e-9);
   EXPECT_NEAR(b.max[2] - b.min[2], 1.5, 1e-9);
+}
+
+// OBJ/PLY/OFF carry no unit: the guess picks the unit whose length is nearest
+// the class (or 1 to 25 m). The 4,500-unit millimetre car used to be taken as
+// centimetres (45 m long).
+TEST(ModelImport, PolygonFileUnitIsGuessedOrGiven) {
+  const fs::path dir = scratch_dir("units");
+  struct Case {
+    double length;        // file units
+    double class_length;  // 0: unknown
+    double want_scale;
+  };
+  const Case cases[] = {{4.5, 0, 1.0},   {450, 0, 0.01},  {4500, 0, 0.001}, {4500, 5.0, 0.001}, {2.5, 5.0, 1.0},
+                        {1200, 12, 0.01}, {12000, 12, 0.001}, {30, 0, 1.0}, {1600, 1.6, 0.001}};
+  for (const Case& c : cases) {
+    std::vector<Vec3> v = cube_vertices();
+    for (Vec3& p : v) p = {p[0] * c.length, p[1] * c.length * 0.4, p[2] * c.length * 0.3};
+    const std::string file = (dir / "box.obj").string();
+    std::string obj;
+    for (const Vec3& p : v) obj += "v " + std::to_string(p[0]) + " " + std::to_string(p[1]) + " " + std::to_string(p[2]) + "\n";
+    for (const auto& q : kCubeQuads) obj += "f " + std::to_string(q[0] + 1) + " " + std::to_string(q[1] + 1) + " " +
+                                           std::to_string(q[2] + 1) + " " + std::to_string(q[3] + 1) + "\n";
+    write_text(dir / "box.obj", obj);
+    const ImportedModel m = import_model(file, {0, "car", c.class_length});
+    EXPECT_DOUBLE_EQ(m.unit_scale, c.want_scale) << c.length << " units, class " << c.class_length;
+    EXPECT_EQ(m.unit_source, "guessed from the size");
+    const Bounds b = m.bounds();
+    EXPECT_NEAR(b.max[0] - b.min[0], c.length * c.want_scale, 1e-9 * c.length);
+  }
+  // A unit that is given is taken even when implausible, with a warning.
+  const ImportedModel given = import_model((dir / "box.obj").string(), {parse_model_unit("m"), "bicycle", 1.6});
+  EXPECT_EQ(given.unit_scale, 1.0);
+  EXPECT_TRUE(contains(given.warnings, "1600 m long in metres (given)", "implausible for a bicycle"))
+      << ::testing::PrintToString(given.warnings);
+  EXPECT_EQ(parse_model_unit("mm"), 0.001);
+  EXPECT_EQ(parse_model_unit("in"), 0.0254);
+  EXPECT_EQ(parse_model_unit("furlong"), 0.0);
 }
 
 TEST(ModelImport, ZeroSizeModelIsAnError) {
@@ -835,8 +884,11 @@ TEST(ModelImport, BadPolygonFilesAreInputErrors) {
     for (std::size_t i = 0; i < idx.size(); i += 3) tris.push_back({idx[i], idx[i + 1], idx[i + 2]});
     write_ply((dir / "binary.ply").string(), cube_vertices(), tris);
     const std::string bytes = raysweep::test::read_text(dir / "binary.ply");
-    for (std::size_t cut : {5, 13, 40, 100}) {
-      write_text(dir / "short_binary.ply", bytes.substr(0, bytes.size() - cut));
+    // Every cut inside the data (ending just before a face's list length
+    // included, where the readers used to read an uninitialised count).
+    const std::size_t data_start = bytes.find("end_header\n") + 11;
+    for (std::size_t n = data_start; n < bytes.size(); ++n) {
+      write_text(dir / "short_binary.ply", bytes.substr(0, n));
       expect_input_error(dir / "short_binary.ply", "truncated");
     }
     // A corrupt list length in the middle of the faces (13 bytes per face).
