@@ -73,6 +73,14 @@ const nlohmann::json& ns3_table_schema() { return ns3_table_embedded().json; }
 namespace {
 
 using hdf5::BlockReader;
+
+// The file's size, and per row of its main table (`per_key`).
+void add_file_size(nlohmann::json& info, const std::string& path, std::uint64_t rows, const char* per_key) {
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(path, ec);
+  info["file_bytes"] = ec ? 0 : bytes;
+  info[per_key] = rows && !ec ? static_cast<double>(bytes) / static_cast<double>(rows) : 0.0;
+}
 using hdf5::dataset_dims;
 using hdf5::Handle;
 using hdf5::has_attr;
@@ -981,10 +989,7 @@ nlohmann::json channel_info(const InfoReader& r) {
     if (nlohmann::json::accept(text)) info["shard"] = nlohmann::json::parse(text);
   }
 
-  std::error_code ec;
-  const auto bytes = std::filesystem::file_size(r.path, ec);
-  info["file_bytes"] = ec ? 0 : bytes;
-  info["bytes_per_link"] = links && !ec ? static_cast<double>(bytes) / static_cast<double>(links) : 0.0;
+  add_file_size(info, r.path, links, "bytes_per_link");
   return info;
 }
 
@@ -1193,10 +1198,7 @@ nlohmann::json ns3_table_info(const InfoReader& r) {
     info["band_width_hz"] = r.num_attr<double>(g.get(), "band_width_hz", H5T_NATIVE_DOUBLE).value_or(0.0);
   }
   info["bands"] = bands;
-  std::error_code ec;
-  const auto bytes = std::filesystem::file_size(r.path, ec);
-  info["file_bytes"] = ec ? 0 : bytes;
-  info["bytes_per_pair_frame"] = pairs && !ec ? static_cast<double>(bytes) / static_cast<double>(pairs) : 0.0;
+  add_file_size(info, r.path, pairs, "bytes_per_pair_frame");
   return info;
 }
 
