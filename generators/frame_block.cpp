@@ -91,7 +91,7 @@ class In {
   }
   void refill() {
     const std::size_t keep = end_ - at_;
-    std::memmove(buf_.data(), buf_.data() + at_, keep);
+    if (keep > 0) std::memmove(buf_.data(), buf_.data() + at_, keep);  // empty: no buffer to move (null)
     const std::uint64_t unread = left() - keep;
     const std::size_t want = static_cast<std::size_t>(std::min<std::uint64_t>(kChunk, unread));
     buf_.resize(std::max(buf_.size(), keep + want));
