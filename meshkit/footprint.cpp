@@ -487,13 +487,20 @@ TriangulatedPolygon triangulate(const Polygon2& polygon) {
 }
 
 bool footprint_contains(const Footprint& f, Vec2 p) {
+  // The free function, not Polygon_2::bounded_side: the stored rings are
+  // rounded to doubles and may touch themselves, which the member's
+  // is_simple() precondition rejects (the sanitizer build checks it); the
+  // crossing test itself is defined for any ring.
   const IK::Point_2 q(p[0], p[1]);
+  auto side = [&](const std::vector<Vec2>& ring) {
+    const IPolygon poly = to_inexact(ring);
+    return CGAL::bounded_side_2(poly.vertices_begin(), poly.vertices_end(), q, IK());
+  };
   for (const auto& poly : f.polygons) {
-    IPolygon outer = to_inexact(poly.outer);
-    if (outer.bounded_side(q) != CGAL::ON_BOUNDED_SIDE) continue;
+    if (side(poly.outer) != CGAL::ON_BOUNDED_SIDE) continue;
     bool in_hole = false;
     for (const auto& h : poly.holes)
-      if (to_inexact(h).bounded_side(q) != CGAL::ON_UNBOUNDED_SIDE) in_hole = true;
+      if (side(h) != CGAL::ON_UNBOUNDED_SIDE) in_hole = true;
     if (!in_hole) return true;
   }
   return false;
