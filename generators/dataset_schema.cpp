@@ -897,6 +897,19 @@ struct InfoReader {
   }
 };
 
+// Nodes by kind (the node table is written by finish(): absent in an unfinished file).
+void add_node_kinds(nlohmann::json& info, const InfoReader& r) {
+  std::uint64_t vehicles = 0, rsus = 0, nodes = 0;
+  if (r.exists("/nodes/kind"))
+    r.scan_u64("/nodes/kind", [&](const std::vector<std::uint64_t>& k) {
+      for (auto v : k) (v == 1 ? rsus : vehicles) += 1;
+      nodes += k.size();
+    });
+  info["nodes"] = nodes;
+  info["vehicles"] = vehicles;
+  info["rsus"] = rsus;
+}
+
 std::string human_bytes(double b) {
   const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB"};
   int u = 0;
@@ -929,17 +942,7 @@ nlohmann::json channel_info(const InfoReader& r) {
     info["time_end_s"] = t.empty() ? 0.0 : t.back();
   }
 
-  // Nodes by kind (the node table is written by finish(): absent in an unfinished file).
-  std::uint64_t vehicles = 0, rsus = 0, nodes = 0;
-  if (r.exists("/nodes/kind")) {
-    r.scan_u64("/nodes/kind", [&](const std::vector<std::uint64_t>& k) {
-      for (auto v : k) (v == 1 ? rsus : vehicles) += 1;
-      nodes += k.size();
-    });
-  }
-  info["nodes"] = nodes;
-  info["vehicles"] = vehicles;
-  info["rsus"] = rsus;
+  add_node_kinds(info, r);
 
   // Links: LoS classes, flags, paths.
   const hsize_t links = r.rows("/links/los_class");
@@ -1171,15 +1174,7 @@ nlohmann::json ns3_table_info(const InfoReader& r) {
     info[k] = r.num_attr<double>(root, k, H5T_NATIVE_DOUBLE).value_or(0.0);
   const auto source = r.num_attr<std::uint64_t>(root, "gain_source", H5T_NATIVE_UINT64).value_or(255);
   info["gain_source"] = source <= 1 ? gain_source_name(static_cast<GainSource>(source)) : "unknown";
-  std::uint64_t vehicles = 0, rsus = 0, nodes = 0;
-  if (r.exists("/nodes/kind"))
-    r.scan_u64("/nodes/kind", [&](const std::vector<std::uint64_t>& k) {
-      for (auto v : k) (v == 1 ? rsus : vehicles) += 1;
-      nodes += k.size();
-    });
-  info["nodes"] = nodes;
-  info["vehicles"] = vehicles;
-  info["rsus"] = rsus;
+  add_node_kinds(info, r);
   info["frames"] = r.rows("/frames/time_s");
   info["node_states"] = r.rows("/node_states/node");
   const hsize_t pairs = r.rows("/pairs/los_class");

@@ -431,6 +431,11 @@ struct DiffuseTargets {
   double bin_s = 1e-7;            // delay bin width
 };
 
+// Lattice rays per shooting task: sums over a source's rays run chunk by
+// chunk in index order (trace_pairs and diffuse_power alike), so they do not
+// depend on the thread count and both give the same numbers.
+constexpr std::size_t kShootChunk = 256;
+
 // Shoot-and-bounce from node `src`: face sequences that pass near other nodes
 // and, with diffuse scattering on, the scattered power at each hit.
 void shoot_from(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& cfg,
@@ -666,7 +671,7 @@ std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Nod
   TracerConfig local = cfg;
   local.specular = cfg.specular && cfg.candidates != CandidateSearch::exhaustive;
   const auto lattice = fibonacci_sphere(cfg.rays_per_source);
-  const std::size_t chunk = 256, chunks = (lattice.size() + chunk - 1) / chunk;
+  const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
   std::vector<DiffuseBins> bins(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {
     std::vector<CandidateKey> found;
@@ -813,8 +818,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   if ((sbr_specular || ray_diffuse) && n > 1) {
     const auto t_shoot = std::chrono::steady_clock::now();
     const auto lattice = fibonacci_sphere(cfg.rays_per_source);
-    const std::size_t chunk = 256;
-    const std::size_t chunks = (lattice.size() + chunk - 1) / chunk;
+    const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
     struct TaskOut {
       std::vector<CandidateKey> found;
       DiffuseBins bins;
