@@ -143,11 +143,23 @@ std::vector<bool> pareto_front(const std::vector<std::pair<double, double>>& pts
   return front;
 }
 
+static std::size_t mechanism_of(const tracer::Path& path) {
+  std::size_t reflections = 0;
+  for (const auto& i : path.interactions) {
+    if (i.type == tracer::InteractionType::diffuse) return 5;
+    if (i.type == tracer::InteractionType::diffraction) return 4;
+    if (i.type == tracer::InteractionType::specular) ++reflections;
+  }
+  return std::min<std::size_t>(reflections, 3);
+}
+
 void compare_to_reference(const std::vector<PairGains>& setting, const std::vector<PairGains>& reference,
                           TradeoffResult& r, double rx_gain_db) {
   if (setting.size() != reference.size()) throw std::logic_error("tradeoff: snapshot counts differ");
   std::vector<double> errors, errors_rx, ratios;
   std::size_t pairs = 0, agree = 0, missed = 0;
+  r.tail_pairs = 0;
+  r.tail_by_mechanism.assign(kMechanismCount, 0);
   double sum_min = 0, sum_ref = 0;
   for (std::size_t s = 0; s < setting.size(); ++s) {
     const auto& a = setting[s];
@@ -164,7 +176,20 @@ void compare_to_reference(const std::vector<PairGains>& setting, const std::vect
       if (gr > kFloorDb) {
         const double g = gain_db(P);
         errors.push_back(std::abs(g - gr));
-        if (gr >= rx_gain_db) errors_rx.push_back(std::abs(std::max(g, rx_gain_db) - gr));
+        if (gr >= rx_gain_db) {
+          const double e = std::abs(std::max(g, rx_gain_db) - gr);
+          errors_rx.push_back(e);
+          if (e > kAttributionDb && p < a.by_mechanism.size() && p < b.by_mechanism.size()) {
+            std::size_t worst = 0;
+            double worst_diff = -1;
+            for (std::size_t m = 0; m < kMechanismCount; ++m) {
+              const double d = std::abs(a.by_mechanism[p][m] - b.by_mechanism[p][m]);
+              if (d > worst_diff) worst_diff = d, worst = m;
+            }
+            ++r.tail_pairs;
+            ++r.tail_by_mechanism[worst];
+          }
+        }
         if (g <= kFloorDb) ++missed;
       }
     }
@@ -181,6 +206,13 @@ void compare_to_reference(const std::vector<PairGains>& setting, const std::vect
   r.rx_pairs = errors_rx.size();
   r.err_median_rx_db = quantile(errors_rx, 0.5);
   r.err_p95_rx_db = quantile(errors_rx, 0.95);
+}
+
+static json tail_json(const TradeoffResult& r) {
+  json j = json::object();
+  for (std::size_t m = 0; m < kMechanismCount && m < r.tail_by_mechanism.size(); ++m)
+    j[kMechanisms[m]] = r.tail_by_mechanism[m];
+  return j;
 }
 
 json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>& argv) {
@@ -519,6 +551,9 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
         for (const auto& p : traced.pairs) {
           pg.power.push_back(p.stats.gain_incoherent);
           pg.los.push_back(static_cast<int>(p.los_class));
+          std::array<double, kMechanismCount> m{};
+          for (const auto& path : p.paths) m[mechanism_of(path)] += std::norm(path.a);
+          pg.by_mechanism.push_back(m);
         }
         gains[g].push_back(std::move(pg));
         paths[g] += static_cast<double>(traced.stats.paths);
@@ -602,6 +637,8 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                     {"err_median_rx_db", json_num(r.err_median_rx_db)},
                     {"err_p95_rx_db", json_num(r.err_p95_rx_db)},
                     {"rx_pairs", r.rx_pairs},
+                    {"tail_pairs", r.tail_pairs},
+                    {"tail_by_mechanism", tail_json(r)},
                     {"pareto", r.pareto}});
   }
 
@@ -651,6 +688,10 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                 {"power_fraction_median", "median over pairs (P_ref > 0) of min(1, P / P_ref)"},
                 {"time_per_snapshot_s", "median over snapshots of the wall time of trace_snapshot"},
                 {"pareto", "not dominated in (time_per_snapshot_s, err_p95_db)"},
+                {"tail_by_mechanism",
+                 "of the tail_pairs (err_rx > 1 dB), how many have each mechanism as their largest power difference "
+                 "to the reference: direct (no reflection: slabs, vehicles' knife edges), specular order 1, 2, "
+                 ">= 3, diffraction, diffuse"},
                 {"lod", "vehicle LOD; -1: each library entry's default"},
                 {"static_simplification", "static geometry decimated within this error (m); 0: as built"}}},
               {"provenance", prov}};
@@ -667,7 +708,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     if (!chart) spdlog::warn("{}: no chart (python3 with matplotlib needed)", png.string());
   }
 
-  // A table for the terminal.
+  // A table for the terminal, and where the error of the tail comes from.
   std::ostringstream table;
   table << fmt::format("{:<28} {:>10} {:>8} {:>8} {:>8} {:>7} {:>7} {:>7} {:>8} {}\n", "setting", "s/snapshot",
                        "err med", "err p95", "p95 rx", "miss %", "LoS %", "power %", "paths", "pareto");
@@ -677,6 +718,17 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                          grid[g].label, r.time_per_snapshot_s, r.err_median_db, r.err_p95_db, r.err_p95_rx_db,
                          100 * r.missed_pairs, 100 * r.los_agreement, 100 * r.power_fraction, r.paths,
                          r.pareto ? "*" : "");
+  }
+  table << fmt::format("\npairs with p95-rx error > {:g} dB, by the mechanism of their largest power difference:\n",
+                       kAttributionDb);
+  table << fmt::format("{:<28} {:>7}", "setting", "pairs");
+  for (const char* m : kMechanisms) table << fmt::format(" {:>11}", m);
+  table << "\n";
+  for (std::size_t g = 1; g < grid.size(); ++g) {
+    const auto& r = results[g];
+    table << fmt::format("{:<28} {:>7}", grid[g].label, r.tail_pairs);
+    for (std::size_t m = 0; m < kMechanismCount; ++m) table << fmt::format(" {:>11}", r.tail_by_mechanism[m]);
+    table << "\n";
   }
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   spdlog::info("tradeoff: {} settings in {:.1f} s -> {}", grid.size(), wall, out);

@@ -11,6 +11,7 @@
 // Pareto front marked; python/tradeoff_chart.py).
 #pragma once
 
+#include <array>
 #include <string>
 #include <utility>
 #include <vector>
@@ -66,12 +67,25 @@ struct TradeoffResult {
   std::size_t pairs = 0, compared_pairs = 0, rx_pairs = 0;
   std::vector<double> times_s;               // per snapshot
   bool pareto = false;
+  // Where the error comes from: of the pairs whose receiver-side error
+  // exceeds kAttributionDb, how many have each mechanism (kMechanisms) as the
+  // largest power difference to the reference (|P_m - P_ref,m|).
+  std::size_t tail_pairs = 0;
+  std::vector<std::size_t> tail_by_mechanism;
 };
+
+// Mechanism classes for the error attribution: a path's class is diffuse or
+// diffraction when it has such an interaction, else its number of specular
+// reflections (0: the direct path, through slabs and vehicles' knife edges).
+inline constexpr const char* kMechanisms[] = {"direct", "order1", "order2", "order3+", "diffraction", "diffuse"};
+inline constexpr std::size_t kMechanismCount = 6;
+inline constexpr double kAttributionDb = 1.0;
 
 // Per pair of one snapshot: incoherent gain (linear) and LoS class.
 struct PairGains {
   std::vector<double> power;
   std::vector<int> los;
+  std::vector<std::array<double, kMechanismCount>> by_mechanism;  // power per mechanism class (may be empty)
 };
 
 // Error of `setting` against `reference`, pooled over snapshots (same pairs,

@@ -418,6 +418,48 @@ TEST(Diffuse, LambertianConcretePlateMatchesRadarEquation) {
   }
 }
 
+TEST(Diffuse, BothEndsEstimatorSamplesThePlateFromTheNearEnd) {
+  // A far transmitter and a receiver 0.6 m above a 4 x 4 m plate: few of the
+  // transmitter's rays hit the plate (the one-sided estimate is noisy), the
+  // receiver's rays cover it densely. Both ends' samples, combined by the
+  // balance heuristic, converge to the radar integral; a reciprocal
+  // integrand (lambertian PEC plate) gives the same power either way round.
+  const auto scene_def = plate_scene(2, "metal");
+  tracer::TraceScene scene(scene_def);
+  const Vec3 tx{-30, 5, 20}, rx{0.5, 0.3, 0.6};
+  const auto metal = tracer::radio_material("metal", kF);
+  PlateIntegral ref;
+  ref.h = 2;
+  ref.tx = tx;
+  ref.rx = rx;
+  ref.s = 1;
+  ref.material = &metal;
+  ref.panels = 40;  // the receiver is close: a fine rule
+  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  const double want = ref();
+  auto cfg = diffuse_config(4096);
+  tracer::MaterialOverride mo;
+  mo.scattering_coefficient = 1.0;
+  mo.xpd = 0.5;
+  mo.lobe = tracer::ScatteringLobe::lambertian;
+  cfg.materials["metal"] = mo;
+  const auto traced = [&](bool both, bool reversed) {
+    cfg.diffuse_both_ends = both;
+    std::vector<tracer::Node> nodes{node("tx", tx), node("rx", rx)};
+    if (reversed) std::swap(nodes[0], nodes[1]);
+    return powers(tracer::trace_snapshot(scene, nodes, cfg, {}).pairs.at(0)).diffuse;
+  };
+  const double one = traced(false, false), both = traced(true, false), back = traced(true, true);
+  std::printf("near-end plate: radar integral %.6e, one end %.6e (%+.2f %%), both ends %.6e (%+.2f %%)\n", want, one,
+              100 * (one / want - 1), both, 100 * (both / want - 1));
+  EXPECT_NEAR(both / want, 1.0, 0.03);
+  EXPECT_GT(std::fabs(one / want - 1), 3 * std::fabs(both / want - 1)) << "the far end's rays alone are coarser";
+  // Reciprocal up to metal's |Gamma|^2, within 1e-3 of 1 and not the same at
+  // both ends' angles: the same samples, the same weights.
+  EXPECT_NEAR(back / both, 1.0, 1e-4);
+  EXPECT_NE(back, both) << "evaluated from the other end";
+}
+
 // ---------------------------------------------------------------------------
 // 9. Energy partition and a directive lobe.
 
@@ -739,7 +781,8 @@ TEST(Diffuse, OneSourceToManyPointsEqualsTheTracedPairs) {
   const std::vector<tracer::Node> nodes = {node("tx", {0, 0, 6}), node("p1", {40, 3, 1.5}), node("p2", {-30, -2, 2}),
                                            node("p3", {20, 2, 1}), node("p4", {5, 20, 2.5})};
   tracer::TracerConfig cfg;
-  cfg.path_threshold_db = 0;  // every diffuse bin kept in the traced pairs
+  cfg.path_threshold_db = 0;         // every diffuse bin kept in the traced pairs
+  cfg.diffuse_both_ends = false;     // radio map points do not shoot: the one-sided estimator
   std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
   std::vector<std::uint32_t> points;
   for (std::uint32_t j = 1; j < nodes.size(); ++j) {

@@ -67,6 +67,12 @@ struct TracerConfig {
   // their field (the R^2 + S^2 = 1 energy partition).
   bool diffuse = true;
   DiffuseIntegration diffuse_integration = DiffuseIntegration::rays;
+  // Rays: first-order scattering (a -> surface -> b, nothing crossed before
+  // the surface) is gathered from both ends' rays and combined by multiple
+  // importance sampling (balance heuristic on the two ends' hit densities),
+  // so points near either end are sampled densely. Off: the lower end's
+  // rays alone (the one-sided estimator radio maps use; tests).
+  bool diffuse_both_ends = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the
   // node that looks (visibility) or from the nearer end (integration;

@@ -387,12 +387,15 @@ struct DiffuseKey {
   std::uint32_t rx = 0;
   std::uint32_t object = 0;
   std::int64_t bin = 0;
+  // A contribution to the pair (rx, source) gathered by the higher end's
+  // rays (first order, both ends' estimator): rx is the pair's lower end.
+  bool reverse = false;
   auto operator<=>(const DiffuseKey&) const = default;
 };
 struct DiffuseKeyHash {
   std::size_t operator()(const DiffuseKey& k) const {
     return (k.rx * 0x9E3779B97F4A7C15ull) ^ (std::size_t(k.object) * 0xC2B2AE3D27D4EB4Full) ^
-           static_cast<std::size_t>(k.bin) * 0x100000001B3ull;
+           static_cast<std::size_t>(k.bin) * 0x100000001B3ull ^ static_cast<std::size_t>(k.reverse);
   }
 };
 struct DiffuseAcc {
@@ -428,8 +431,23 @@ using DiffuseBins = std::vector<std::pair<DiffuseKey, DiffuseAcc>>;
 // What a source needs to scatter towards its receivers.
 struct DiffuseTargets {
   std::vector<std::uint32_t> rx;  // receivers j > src of requested, in-range pairs
-  double bin_s = 1e-7;            // delay bin width
+  // Both ends' estimator (TracerConfig::diffuse_both_ends): the lower ends
+  // j < src of requested pairs, whose first-order scattering src's rays
+  // sample too, and the weights that combine the two ends' samples.
+  std::vector<std::uint32_t> rev;
+  bool both_ends = false;
+  double bin_s = 1e-7;  // delay bin width
 };
+
+// Balance-heuristic weight of the samples of end a for first-order
+// scattering at a point seen from a and b: each end's rays hit the surface
+// with area density (rays / 4 pi) cos / distance^2, so the weight is
+// q_a / (q_a + q_b), q = cos / distance^2. Both ends' weighted sums add up
+// to one unbiased estimate whose samples come mostly from the nearer end.
+inline double balance_weight(double cos_a, double dist_a, double cos_b, double dist_b) {
+  const double qa = cos_a / (dist_a * dist_a), qb = cos_b / (dist_b * dist_b);
+  return qa + qb > 0 ? qa / (qa + qb) : 0.0;
+}
 
 // Lattice rays per shooting task: sums over a source's rays run chunk by
 // chunk in index order (trace_pairs and diffuse_power alike), so they do not
@@ -443,7 +461,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
                 std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays,
                 const DiffuseTargets* diffuse, DiffuseBins* diffuse_out) {
   const double spacing = std::sqrt(4 * kPi / static_cast<double>(lattice.size())) * cfg.reception_radius_factor;
-  const bool scatter = diffuse && !diffuse->rx.empty();
+  const bool scatter = diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty());
   const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
   const double lambda = em.wavelength();
   struct State {
@@ -545,6 +563,48 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         const double len_in = st.len + hit.t;
         const Scattering& sc = material.scattering;
         const ScatteringLobeAt lobe(sc, st.d, plane.normal);
+        // First order, nothing crossed: the other end's rays sample these
+        // points too (both ends' estimator).
+        const bool mis = diffuse->both_ends && st.seq.n == 0 && st.transmissions == 0;
+        const double cos_in = std::fabs(dot(st.d, plane.normal));
+        const auto record = [&](std::uint32_t j, bool reverse, double power, double tau, const Vec3& departure,
+                                const Vec3& arrival, double dl) {
+          DiffuseKey dk;
+          dk.rx = j;
+          dk.object = scene.object(hit.face);
+          dk.bin = static_cast<std::int64_t>(std::floor(tau / diffuse->bin_s));
+          dk.reverse = reverse;
+          auto [it, fresh] = bin_index.try_emplace(dk, diffuse_out->size());
+          if (fresh) diffuse_out->emplace_back(dk, DiffuseAcc{});
+          DiffuseAcc c;
+          c.power = power;
+          c.tau = power * tau;
+          c.point = power * p;
+          c.departure = power * departure;
+          c.arrival = power * arrival;
+          c.doppler = power * (-dl / lambda);
+          c.peak = power;
+          c.n = st.seq.n + 1;
+          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, c.faces.begin());
+          c.faces[st.seq.n] = hit.face;
+          c.prefix = st.points;
+          (*diffuse_out)[it->second].second.add(c);
+        };
+        // Received power from the reflected field e_in (the field a smooth
+        // surface would reflect) scattered towards ks, at distance rs, by a
+        // tube of d_omega, into the receive pattern looking along -ks.
+        const auto scattered = [&](const CVec3& e_in, const Vec3& ks, double f, double rs, const Vec3& rx_forward) {
+          const cdouble along = cdot(e_in, ks);
+          const CVec3 et{e_in[0] - along * ks[0], e_in[1] - along * ks[1], e_in[2] - along * ks[2]};
+          const double et2 = std::norm(et[0]) + std::norm(et[1]) + std::norm(et[2]);
+          const double er2 = std::norm(e_in[0]) + std::norm(e_in[1]) + std::norm(e_in[2]);
+          if (!(et2 > 1e-30)) return 0.0;
+          const Vec3 fr = antenna_field(em.radio().antenna, -1.0 * ks, rx_forward);
+          const CVec3 ex{ks[1] * et[2] - ks[2] * et[1], ks[2] * et[0] - ks[0] * et[2], ks[0] * et[1] - ks[1] * et[0]};
+          const double co = std::norm(cdot(et, fr)), cross_pol = std::norm(cdot(ex, fr));
+          const double g_eff = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * er2 / et2;
+          return s_coef * s_coef * f * g_eff * lambda * lambda * d_omega / (16 * kPi * kPi * rs * rs);
+        };
         for (std::uint32_t j : diffuse->rx) {
           const Vec3 w = nodes[j].position - p;
           const double rs = norm(w);
@@ -554,40 +614,38 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           if (!(f > 0)) continue;
           ++rays;
           if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
-          // Transverse part of the reflected field towards the receiver.
-          const cdouble along = cdot(e_ref, ks);
-          const CVec3 et{e_ref[0] - along * ks[0], e_ref[1] - along * ks[1], e_ref[2] - along * ks[2]};
-          const double et2 = std::norm(et[0]) + std::norm(et[1]) + std::norm(et[2]);
-          const double er2 = std::norm(e_ref[0]) + std::norm(e_ref[1]) + std::norm(e_ref[2]);
-          if (!(et2 > 1e-30)) continue;
-          const Vec3 fr = antenna_field(em.radio().antenna, -ks, nodes[j].forward);
-          const CVec3 ex{ks[1] * et[2] - ks[2] * et[1], ks[2] * et[0] - ks[0] * et[2], ks[0] * et[1] - ks[1] * et[0]};
-          const double co = std::norm(cdot(et, fr)), cross_pol = std::norm(cdot(ex, fr));
-          const double g_eff = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * er2 / et2;
-          const double power =
-              s_coef * s_coef * f * g_eff * lambda * lambda * d_omega / (16 * kPi * kPi * rs * rs);
+          double power = scattered(e_ref, ks, f, rs, nodes[j].forward);
+          if (mis) power *= balance_weight(cos_in, len_in, std::fabs(dot(ks, plane.normal)), rs);
           if (!(power > 0)) continue;
-          const double tau = (len_in + rs) / kSpeedOfLight;
-          DiffuseKey dk;
-          dk.rx = j;
-          dk.object = scene.object(hit.face);
-          dk.bin = static_cast<std::int64_t>(std::floor(tau / diffuse->bin_s));
-          auto [it, fresh] = bin_index.try_emplace(dk, diffuse_out->size());
-          if (fresh) diffuse_out->emplace_back(dk, DiffuseAcc{});
-          DiffuseAcc c;
-          c.power = power;
-          c.tau = power * tau;
-          c.point = power * p;
-          c.departure = power * lattice[r];
-          c.arrival = power * (-1.0 * ks);
-          const double dl = dl_in + dot(ks, nodes[j].velocity - v_surf);
-          c.doppler = power * (-dl / lambda);
-          c.peak = power;
-          c.n = st.seq.n + 1;
-          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, c.faces.begin());
-          c.faces[st.seq.n] = hit.face;
-          c.prefix = st.points;
-          (*diffuse_out)[it->second].second.add(c);
+          record(j, false, power, (len_in + rs) / kSpeedOfLight, lattice[r], -1.0 * ks,
+                 dl_in + dot(ks, nodes[j].velocity - v_surf));
+        }
+        // The same first-order scattering for the pairs (j, src), j < src,
+        // evaluated as from j to src (each pair's field runs from its lower
+        // end): the point is lit by j, and seen by src along this ray.
+        for (std::size_t q = 0; mis && q < diffuse->rev.size(); ++q) {
+          const std::uint32_t j = diffuse->rev[q];
+          const Vec3 w = p - nodes[j].position;
+          const double la = norm(w);
+          if (la < 1e-6) continue;
+          const Vec3 ki = (1.0 / la) * w;
+          const Vec3 ks = -1.0 * st.d;
+          const double f = ScatteringLobeAt(sc, ki, plane.normal)(ks);
+          if (!(f > 0)) continue;
+          ++rays;
+          if (scene.occluded(p, -1.0 * ki, 0, la - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
+          const double cos_a = std::fabs(dot(ki, plane.normal));
+          const auto ca = em.coefficients(mat, cos_a);
+          const Vec3 es_a = te_basis(ki, plane.normal);
+          const Vec3 ko_a = ki - (2 * dot(ki, plane.normal)) * plane.normal;
+          const CVec3 e_a = cvec(antenna_field(em.radio().antenna, ki, nodes[j].forward));
+          const CVec3 e_ref_a =
+              combine(ca.r.te * cdot(e_a, es_a), es_a, ca.r.tm * cdot(e_a, cross(es_a, ki)), cross(es_a, ko_a));
+          double power = scattered(e_ref_a, ks, f, hit.t, nodes[src].forward);
+          power *= balance_weight(cos_a, la, cos_in, hit.t);
+          if (!(power > 0)) continue;
+          record(j, true, power, (la + hit.t) / kSpeedOfLight, ki, st.d,
+                 dot(ki, v_surf - nodes[j].velocity) + dot(ks, nodes[src].velocity - v_surf));
         }
       }
       if (can_transmit) {
@@ -760,7 +818,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       continue;
     }
     // Diffuse power is gathered from the lower end's rays only.
-    if (ray_diffuse) targets[i].rx.push_back(j);
+    if (ray_diffuse) {
+      targets[i].rx.push_back(j);
+      if (cfg.diffuse_both_ends) targets[j].rev.push_back(i);
+    }
     for (auto e : {i, j}) {
       if (is_source[e]) continue;
       is_source[e] = 1;
@@ -769,6 +830,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   }
   for (auto& t : targets) {
     std::sort(t.rx.begin(), t.rx.end());
+    std::sort(t.rev.begin(), t.rev.end());
+    t.both_ends = cfg.diffuse_both_ends;
     t.bin_s = 1.0 / radio.bandwidth_hz;
   }
   std::sort(sources.begin(), sources.end());
@@ -850,9 +913,14 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         candidates[it->second].push_back(std::move(k.faces));
       }
       for (auto& [dk, acc] : out.bins) {
-        const auto it = slot.find(static_cast<std::uint64_t>(src) << 32 | dk.rx);
+        // Both ends' samples of a pair's bin merge into one record.
+        const std::uint32_t a = dk.reverse ? dk.rx : src, b = dk.reverse ? src : dk.rx;
+        const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
         if (it == slot.end()) continue;
-        diffuse[it->second][dk].add(acc);
+        DiffuseKey key = dk;
+        key.rx = b;
+        key.reverse = false;
+        diffuse[it->second][key].add(acc);
       }
       out = TaskOut{};
     }
