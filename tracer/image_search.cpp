@@ -390,4 +390,54 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   }
 }
 
+void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                             std::uint32_t src, const std::vector<std::uint32_t>& receivers,
+                             const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
+                             ImageSearchStats* stats) {
+  if (combos.empty() || receivers.empty()) return;
+  ImageSearchStats local;
+  const Vec3 xs = nodes[src].position;
+  auto on_face = [&](std::size_t f, const Vec3& p) {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  };
+  for (const auto& [f1, v] : combos) {
+    const Plane& p1 = faces.planes[f1];
+    const double ds = dot(p1.normal, xs) - p1.offset;
+    if (ds == 0) continue;
+    const Vec3 i1 = xs - (2 * ds) * p1.normal;
+    const auto& sv = faces.vehicle_spheres[v];
+    const double h = dot(p1.normal, sv.centre) - p1.offset;
+    if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side of f1
+    ++local.image_sources;
+    for (auto r : receivers) {
+      const Vec3 xr = nodes[r].position;
+      Vec3 m;
+      double cos_delta = -1;
+      // The receiver's own vehicle: the faces its mount sees (the normal
+      // bound is void inside the sphere).
+      const std::vector<std::uint32_t>* list =
+          static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
+      if (!list) list = &faces_towards(scene, sv, v, i1, xr, m, cos_delta);
+      for (auto lf : *list) {
+        const std::size_t f = faces.vehicle_begin[v] + lf;
+        const Plane& pl = faces.planes[f];
+        if (cos_delta > -1 && std::fabs(dot(pl.normal, m)) < cos_delta - 1e-12) continue;
+        const double df = dot(pl.normal, i1) - pl.offset, d = dot(pl.normal, xr) - pl.offset;
+        if (!(df * d > 0)) continue;
+        ++local.tests;
+        const Vec3 q2 = crossing(i1 - (2 * df) * pl.normal, -df, xr, d);
+        if (!on_face(f, q2)) continue;
+        const double d2 = dot(p1.normal, q2) - p1.offset;
+        if (ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({r, {faces.refs[f1], faces.refs[f]}});
+      }
+    }
+  }
+  if (stats) {
+    stats->image_sources += local.image_sources;
+    stats->tests += local.tests;
+  }
+}
+
 }  // namespace raysweep::tracer

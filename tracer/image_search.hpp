@@ -15,10 +15,13 @@
 // Vehicle faces are found through their normals: a vehicle reflects from
 // `a` to `b` only on faces whose normal lies within the angle its bounding
 // sphere subtends from both ends of the bisector of the two directions.
-// Other order-2 sequences touching a vehicle (walls, other vehicles) and
-// orders >= 3 come from shoot-and-bounce (solver.cpp), merged with these.
+// A static face with any other vehicle is enumerated the same way for the
+// (face, vehicle) combinations the shoot-and-bounce rays reach (below).
+// Vehicle-vehicle sequences and orders >= 3 come from shoot-and-bounce
+// (solver.cpp), merged with these.
 #pragma once
 
+#include <compare>
 #include <cstdint>
 #include <vector>
 
@@ -68,5 +71,25 @@ ImageFaces image_faces(const TraceScene& scene);
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr);
+
+// A static face and a vehicle the shoot-and-bounce rays of one source reach
+// in that order (a ray reflected by the face passes within the vehicle's
+// sphere, widened by the ray spacing): where a wall's echo off a third
+// vehicle can exist. Rays sample a wall's beam densely even where they
+// miss every face of a small, far vehicle.
+struct BeamVehicle {
+  std::uint32_t face = 0;     // static face (index into ImageFaces' static faces)
+  std::uint32_t vehicle = 0;
+  auto operator<=>(const BeamVehicle&) const = default;
+};
+
+// The order-2 sequences (static face f, any face of vehicle v) of every
+// listed combination from node `src` to each of `receivers`, enumerated
+// exactly through the vehicle's normals as above (towards every receiver:
+// from the other end they read vehicle then static face).
+void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                             std::uint32_t src, const std::vector<std::uint32_t>& receivers,
+                             const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
+                             ImageSearchStats* stats = nullptr);
 
 }  // namespace raysweep::tracer

@@ -459,7 +459,8 @@ constexpr std::size_t kShootChunk = 256;
 void shoot_from(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& cfg,
                 const std::vector<Node>& nodes, std::uint32_t src, const std::vector<Vec3>& lattice,
                 std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays,
-                const DiffuseTargets* diffuse, DiffuseBins* diffuse_out) {
+                const DiffuseTargets* diffuse, DiffuseBins* diffuse_out, const ImageFaces* beam_faces = nullptr,
+                std::vector<BeamVehicle>* beams = nullptr) {
   const double spacing = std::sqrt(4 * kPi / static_cast<double>(lattice.size())) * cfg.reception_radius_factor;
   const bool scatter = diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty());
   const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
@@ -529,6 +530,22 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           key.other = j;
           key.faces.assign(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n);
           if (seen.insert(key).second) out.push_back(key);
+        }
+      }
+      // After one reflection on a static face: the vehicles this ray passes
+      // (within their sphere, widened by twice the ray spacing at that
+      // distance) are in that face's beam (BeamVehicle).
+      if (beams && st.seq.n == 1 && st.seq.faces[0].instance == 0 &&
+          !std::binary_search(beam_faces->ground.begin(), beam_faces->ground.end(), st.seq.faces[0].face)) {
+        const auto& spheres = beam_faces->vehicle_spheres;
+        const double tmax = std::min(tseg, 1e30);
+        for (std::uint32_t v = 0; v < spheres.size(); ++v) {
+          if (static_cast<int>(v) == nodes[src].vehicle) continue;  // the image search has the source's own
+          const Vec3 c = spheres[v].centre - st.o;
+          const double t = std::clamp(dot(c, st.d), 0.0, tmax);
+          const Vec3 q = c - t * st.d;
+          const double reach = spheres[v].radius + 2 * spacing * (st.len + t);
+          if (dot(q, q) <= reach * reach) beams->push_back({st.seq.faces[0].face, v});
         }
       }
       if (!got) continue;
@@ -684,6 +701,10 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         stack.push_back(next);
       }
     }
+  }
+  if (beams) {
+    std::sort(beams->begin(), beams->end());
+    beams->erase(std::unique(beams->begin(), beams->end()), beams->end());
   }
 }
 
@@ -842,21 +863,23 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   const bool image = cfg.specular && cfg.max_depth > 0 && n > 1 && cfg.candidates == CandidateSearch::image;
   const bool sbr_specular = cfg.specular && cfg.max_depth > 0 && cfg.candidates != CandidateSearch::exhaustive;
   ImageFaces faces;
+  // Every in-range partner of each node (sorted).
+  std::vector<std::vector<std::uint32_t>> partners(image ? n : 0);
   if (image) {
-    // Every in-range partner of each node; sources in index order.
-    std::vector<std::vector<std::uint32_t>> partners(n);
     for (std::size_t p = 0; p < pairs.size(); ++p)
       if (in_range[p]) {
         partners[pairs[p].first].push_back(pairs[p].second);
         partners[pairs[p].second].push_back(pairs[p].first);
       }
+    for (auto& v : partners) std::sort(v.begin(), v.end());
+  }
+  if (image) {
     const auto t_image = std::chrono::steady_clock::now();
     std::vector<std::vector<ImageCandidate>> found(n);
     std::vector<ImageSearchStats> istats(n);
     faces = image_faces(scene);
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
       if (partners[i].empty()) return;
-      std::sort(partners[i].begin(), partners[i].end());
       image_candidates(scene, faces, nodes, i, partners[i], std::min(cfg.max_depth, 2), found[i], &istats[i]);
     });
     for (const auto& st : istats) {
@@ -885,9 +908,14 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     struct TaskOut {
       std::vector<CandidateKey> found;
       DiffuseBins bins;
+      std::vector<BeamVehicle> beams;
       std::uint64_t rays = 0;
     };
     std::vector<TaskOut> tasks(sources.size() * chunks);
+    // Static face then a third vehicle: the rays say which combinations
+    // can exist, the image method enumerates their faces exactly.
+    const bool beam_search = image && cfg.max_depth >= 2;
+    std::vector<std::vector<BeamVehicle>> beams(beam_search ? n : 0);
     tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
       const auto src = sources[task / chunks];
       const std::size_t c = task % chunks;
@@ -895,7 +923,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       TracerConfig local = cfg;
       local.specular = sbr_specular;
       shoot_from(scene, em, local, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk),
-                 out.found, out.rays, ray_diffuse ? &targets[src] : nullptr, &out.bins);
+                 out.found, out.rays, ray_diffuse ? &targets[src] : nullptr, &out.bins, beam_search ? &faces : nullptr,
+                 beam_search ? &out.beams : nullptr);
       if (!sbr_specular) out.found.clear();
     });
     // Merged in task order: the same sums for any thread count.
@@ -922,7 +951,30 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         key.reverse = false;
         diffuse[it->second][key].add(acc);
       }
+      if (beam_search) beams[src].insert(beams[src].end(), out.beams.begin(), out.beams.end());
       out = TaskOut{};
+    }
+    if (beam_search) {
+      const auto t_beams = std::chrono::steady_clock::now();
+      std::vector<std::vector<ImageCandidate>> found(n);
+      std::vector<ImageSearchStats> bstats(n);
+      tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
+        auto& b = beams[i];
+        if (b.empty() || partners[i].empty()) return;
+        std::sort(b.begin(), b.end());
+        b.erase(std::unique(b.begin(), b.end()), b.end());
+        beam_vehicle_candidates(scene, faces, nodes, i, partners[i], b, found[i], &bstats[i]);
+      });
+      for (std::uint32_t i = 0; i < n; ++i) {
+        snap.stats.image_sources += bstats[i].image_sources;
+        snap.stats.image_tests += bstats[i].tests;
+        for (auto& c : found[i]) {
+          if (c.rx < i) std::reverse(c.faces.begin(), c.faces.end());
+          const std::uint64_t key = static_cast<std::uint64_t>(std::min(i, c.rx)) << 32 | std::max(i, c.rx);
+          candidates[slot.at(key)].push_back(std::move(c.faces));
+        }
+      }
+      snap.stats.time.image_search += seconds_since(t_beams);
     }
     // Thread-local order varies; the sorted set does not.
     tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t p) {
