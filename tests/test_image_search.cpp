@@ -186,13 +186,13 @@ TEST(ImageSearch, VehicleReflectionsMatchExhaustiveAtOrder1) {
 }
 
 // Order 2 with instanced vehicles: every exhaustive path whose face
-// sequence is of a class the image search enumerates completely (ground and
-// a vehicle in either order; any static face and the vehicle carrying
-// either antenna) is found, and every path of a wall and a third vehicle
-// (enumerated exactly for the combinations the rays reach) that does not
-// run through a building. Two vehicles are sampled; the test reports how
-// many such paths occurred.
-TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
+// sequence is of a class the image search enumerates completely (static
+// faces; the ground and a vehicle in either order) is found, and every path
+// of another static face and a vehicle, the antennas' own included
+// (enumerated exactly for the combinations the rays' beams reach), that
+// does not run through a building. Two vehicles are sampled; the test
+// reports how many such paths occurred.
+TEST(ImageSearch, VehicleBouncesWithGroundAndWallsMatchExhaustiveAtOrder2) {
   std::size_t compared = 0, sampled = 0, beam = 0, inside = 0;
   for (unsigned seed = 1; seed <= 4; ++seed) {
     const VehicleStreet st = vehicle_street(seed, 5, 60);
@@ -211,15 +211,10 @@ TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
           if (it.type == tracer::InteractionType::specular) refl.push_back(names[it.object]);
         if (refl.size() != 2) continue;
         const auto veh = [&](const std::string& n) { return n.rfind("vehicle/", 0) == 0; };
-        const auto end_vehicle = [&](const std::string& n) {
-          return n == "vehicle/" + nodes[pr.tx].id || n == "vehicle/" + nodes[pr.rx].id;
-        };
         const bool complete = (!veh(refl[0]) && !veh(refl[1])) ||
-                              (veh(refl[0]) != veh(refl[1]) &&
-                               (refl[0] == "ground" || refl[1] == "ground" || end_vehicle(refl[0]) ||
-                                end_vehicle(refl[1])));
-        const bool wall_and_third = veh(refl[0]) != veh(refl[1]) && !complete;
-        if (!complete && !wall_and_third) {
+                              (veh(refl[0]) != veh(refl[1]) && (refl[0] == "ground" || refl[1] == "ground"));
+        const bool wall_and_vehicle = veh(refl[0]) != veh(refl[1]) && !complete;
+        if (!complete && !wall_and_vehicle) {
           ++sampled;
           continue;
         }
@@ -229,7 +224,7 @@ TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
         bool through_building = false;
         for (const auto& it : path.interactions)
           through_building |= it.type == tracer::InteractionType::refraction && !veh(names[it.object]);
-        if (wall_and_third && through_building) {
+        if (wall_and_vehicle && through_building) {
           ++inside;
           continue;
         }
@@ -244,7 +239,7 @@ TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
   }
   EXPECT_GT(compared, 30u);
   EXPECT_GT(beam, 3u);
-  std::printf("order-2 vehicle paths in complete classes: %zu, wall and third vehicle: %zu (and %zu through a "
+  std::printf("order-2 vehicle paths in complete classes: %zu, wall and vehicle: %zu (and %zu through a "
               "building), two vehicles: %zu\n",
               compared, beam, inside, sampled);
 }
@@ -256,7 +251,7 @@ TEST(ImageSearch, GroundAndOwnVehicleBouncesMatchExhaustiveAtOrder2) {
 // does not run through a building is found.
 TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
   std::size_t compared = 0, inside = 0;
-  for (unsigned seed = 1; seed <= 4; ++seed) {
+  for (unsigned seed = 1; seed <= 3; ++seed) {
     VehicleStreet st = vehicle_street(seed, 4, 40);
     std::mt19937 rng(100 + seed);
     auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };

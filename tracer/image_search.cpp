@@ -98,17 +98,15 @@ ImageFaces image_faces(const TraceScene& scene) {
   return t;
 }
 
-bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& seq, int vehicle_a,
-                    int vehicle_b) {
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& seq) {
   if (seq.size() == 1) return true;
   if (seq.size() != 2) return false;
   const bool v0 = scene.is_vehicle(seq[0]), v1 = scene.is_vehicle(seq[1]);
   if (!v0 && !v1) return true;
   if (v0 == v1) return false;  // two vehicle faces
+  // Ground and a vehicle; a wall and a vehicle come from the rays' beams.
   const FaceRef& st = v0 ? seq[1] : seq[0];
-  const int vehicle = static_cast<int>((v0 ? seq[0] : seq[1]).instance) - 1;
-  return std::binary_search(faces.ground.begin(), faces.ground.end(), st.face) || vehicle == vehicle_a ||
-         vehicle == vehicle_b;
+  return std::binary_search(faces.ground.begin(), faces.ground.end(), st.face);
 }
 
 namespace {
@@ -231,18 +229,15 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   };
 
   // Reflections on vehicle v's faces from `from` to receiver r: emit(face,
-  // point) for each face whose reflection point lies on it. Faces come from
-  // the normal index, or (`mount`) on the receiver's own vehicle from the
-  // faces its antenna mount sees, where the normal bound is void.
-  auto vehicle_reflections = [&](std::size_t v, const Vec3& from, std::size_t r, bool mount, auto&& emit) {
+  // point) for each face whose reflection point lies on it, the faces taken
+  // from the normal index.
+  auto vehicle_reflections = [&](std::size_t v, const Vec3& from, std::size_t r, auto&& emit) {
     const Vec3 xr = receiver(r);
     Vec3 m;
     double cos_delta = -1;
-    const std::vector<std::uint32_t>* list =
-        mount && static_cast<int>(v) == nodes[receivers[r]].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
-    if (!list) list = &faces_towards(scene, faces.vehicle_spheres[v], v, from, xr, m, cos_delta);
+    const auto& list = faces_towards(scene, faces.vehicle_spheres[v], v, from, xr, m, cos_delta);
     ++local.image_sources;
-    for (auto lf : *list) {
+    for (auto lf : list) {
       const std::size_t f = faces.vehicle_begin[v] + lf;
       if (cos_delta > -1 && std::fabs(dot(faces.planes[f].normal, m)) < cos_delta - 1e-12) continue;
       Vec3 p;
@@ -253,7 +248,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   // Order 1, vehicle faces, through their normals (towards higher receivers).
   for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
     for (std::size_t r = higher_from; r < rx.size(); ++r)
-      vehicle_reflections(v, xs, r, false,
+      vehicle_reflections(v, xs, r,
                           [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
 
   // Order 2, ground then vehicle (towards every receiver: from the other
@@ -268,50 +263,11 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       const double h = dot(pg.normal, sv.centre) - pg.offset;
       if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
       for (std::size_t r = 0; r < rx.size(); ++r)
-        vehicle_reflections(v, i1, r, false, [&](std::size_t f, const Vec3& q2) {
+        vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
           const double d2 = dot(pg.normal, q2) - pg.offset;
           if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
             out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
         });
-    }
-  }
-
-  // Order 2, a static face then a vehicle carrying one of the pair's ends
-  // (towards every receiver, for the reverse order from the other end).
-  // Whether vehicle v can be in the beam reflected by static face f1.
-  auto in_beam = [&](std::uint32_t f1, const Vec3& i1, double ds, const Cone* beam, std::size_t v) {
-    const auto& sv = faces.vehicle_spheres[v];
-    Cone cv;
-    if (beam && cone_to(i1, sv, cv) && !cones_overlap(*beam, cv)) return false;
-    const Plane& p1 = faces.planes[f1];
-    const double h = dot(p1.normal, sv.centre) - p1.offset;
-    return ds > 0 ? h + sv.radius > 0 : h - sv.radius < 0;
-  };
-  auto static_then_vehicle = [&](std::uint32_t f1, const Vec3& i1, double ds, std::size_t v, std::size_t r) {
-    const Plane& p1 = faces.planes[f1];
-    vehicle_reflections(v, i1, r, true, [&](std::size_t f, const Vec3& q2) {
-      const double d2 = dot(p1.normal, q2) - p1.offset;
-      if (ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2)))
-        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f]}});
-    });
-  };
-  const int own = nodes[src].vehicle;
-  bool any_end_vehicle = own >= 0;
-  for (auto r : receivers) any_end_vehicle = any_end_vehicle || nodes[r].vehicle >= 0;
-  for (std::uint32_t f1 = 0; max_order >= 2 && any_end_vehicle && f1 < faces.static_count; ++f1) {
-    if (std::binary_search(faces.ground.begin(), faces.ground.end(), f1)) continue;  // done above for all vehicles
-    const Plane& p1 = faces.planes[f1];
-    const double ds = dot(p1.normal, xs) - p1.offset;
-    if (ds == 0) continue;
-    const Vec3 i1 = xs - (2 * ds) * p1.normal;
-    Cone beam;
-    const Cone* b = cone_to(i1, faces.spheres[f1], beam) ? &beam : nullptr;
-    const bool own_in_beam = own >= 0 && in_beam(f1, i1, ds, b, static_cast<std::size_t>(own));
-    for (std::size_t r = 0; r < rx.size(); ++r) {
-      if (own_in_beam) static_then_vehicle(f1, i1, ds, static_cast<std::size_t>(own), r);
-      const int theirs = nodes[receivers[r]].vehicle;
-      if (theirs >= 0 && theirs != own && in_beam(f1, i1, ds, b, static_cast<std::size_t>(theirs)))
-        static_then_vehicle(f1, i1, ds, static_cast<std::size_t>(theirs), r);
     }
   }
 

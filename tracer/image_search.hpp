@@ -9,14 +9,14 @@
 //   order 2: every pair of static faces (walls, roofs, ground; few and large),
 //            pruned by side tests and the beam each first face reflects.
 //   order 2: every ground face (large horizontal static faces) with every
-//            vehicle face, in both orders (a car body's ground bounce), and
-//            every static face with every face of the vehicles carrying the
-//            pair's two antennas (a wall's echo off the car's own roof).
+//            vehicle face, in both orders (a car body's ground bounce).
 // Vehicle faces are found through their normals: a vehicle reflects from
 // `a` to `b` only on faces whose normal lies within the angle its bounding
 // sphere subtends from both ends of the bisector of the two directions.
-// A static face with any other vehicle is enumerated the same way for the
-// (face, vehicle) combinations the shoot-and-bounce rays reach (below).
+// Any other static face with any vehicle (a wall's echo off a car, the
+// antenna's own included) is enumerated the same way for the (face, vehicle)
+// combinations the shoot-and-bounce rays' beams reach (BeamVehicle, below):
+// the rays sample a wall densely where they miss a small, far car's faces.
 // Vehicle-vehicle sequences and orders >= 3 come from shoot-and-bounce
 // (solver.cpp), merged with these.
 #pragma once
@@ -55,10 +55,9 @@ struct ImageFaces {
   std::vector<std::uint32_t> outline_begin;  // static faces + 1
   std::vector<Vec3> outline;
 };
-// True when the image search enumerates every sequence of this kind for a
-// pair whose ends ride vehicles `vehicle_a` and `vehicle_b` (-1: none).
-bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence,
-                    int vehicle_a, int vehicle_b);
+// True when the image search enumerates every sequence of this kind
+// (order 1; order 2 of static faces, or of the ground and a vehicle).
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence);
 ImageFaces image_faces(const TraceScene& scene);
 
 // Face sequences of order 1..max_order (at most 2) from node `src` to each

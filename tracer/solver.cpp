@@ -540,7 +540,6 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         const auto& spheres = beam_faces->vehicle_spheres;
         const double tmax = std::min(tseg, 1e30);
         for (std::uint32_t v = 0; v < spheres.size(); ++v) {
-          if (static_cast<int>(v) == nodes[src].vehicle) continue;  // the image search has the source's own
           const Vec3 c = spheres[v].centre - st.o;
           const double t = std::clamp(dot(c, st.d), 0.0, tmax);
           const Vec3 q = c - t * st.d;
@@ -934,7 +933,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       search_rays += out.rays;
       for (auto& k : out.found) {
         // The image search already enumerated these completely.
-        if (image && image_complete(scene, faces, k.faces, nodes[src].vehicle, nodes[k.other].vehicle)) continue;
+        if (image && image_complete(scene, faces, k.faces)) continue;
         const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
         const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
         if (it == slot.end() || !in_range[it->second]) continue;
