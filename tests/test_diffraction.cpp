@@ -167,6 +167,11 @@ tracer::TracerConfig diffraction_config() {
   c.diffraction = true;
   c.refraction = false;
   c.path_threshold_db = 0;
+  // Diffuse stays on (its R^2 + S^2 partition is what the UTD term must
+  // match at the boundaries), gathered from the transmitter's rays alone:
+  // the receiver scans in 1 mm steps, and its own lattice would move with
+  // it (sampling noise of a few tenths of a dB near a shadow boundary).
+  c.diffuse_both_ends = false;
   return c;
 }
 
