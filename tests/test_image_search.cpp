@@ -247,10 +247,12 @@ TEST(ImageSearch, VehicleBouncesWithGroundAndWallsMatchExhaustiveAtOrder2) {
 // A wall's echo off a vehicle that carries neither antenna (road-side
 // units and pedestrians' devices, not on vehicles): the rays say which
 // (wall, vehicle) combinations their beams reach, the image method then
-// enumerates the vehicle's faces exactly. Every such exhaustive path that
-// does not run through a building is found.
+// enumerates the vehicle's faces exactly. And two reflections on one
+// vehicle (its concave parts), from the model's table of multi-bounce
+// sequences (more of those below). Every such exhaustive path that does not
+// run through a building is found.
 TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
-  std::size_t compared = 0, inside = 0;
+  std::size_t compared = 0, inside = 0, one_vehicle = 0;
   for (unsigned seed = 1; seed <= 3; ++seed) {
     VehicleStreet st = vehicle_street(seed, 4, 40);
     std::mt19937 rng(100 + seed);
@@ -270,7 +272,10 @@ TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
           if (it.type == tracer::InteractionType::specular) refl.push_back(names[it.object]);
           through_building |= it.type == tracer::InteractionType::refraction && !veh(names[it.object]);
         }
-        if (refl.size() != 2 || veh(refl[0]) == veh(refl[1]) || refl[0] == "ground" || refl[1] == "ground") continue;
+        if (refl.size() != 2) continue;
+        const bool same_vehicle = veh(refl[0]) && refl[0] == refl[1];
+        if (!same_vehicle && (veh(refl[0]) == veh(refl[1]) || refl[0] == "ground" || refl[1] == "ground")) continue;
+        one_vehicle += same_vehicle;
         if (through_building) {
           ++inside;
           continue;
@@ -284,6 +289,53 @@ TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
                            << 10 * std::log10(std::norm(path.a)) << " dB";
       }
   }
-  std::printf("wall and third-vehicle paths: %zu compared, %zu through a building\n", compared, inside);
+  std::printf("wall and third-vehicle paths, two reflections on one vehicle: %zu compared (%zu on one vehicle), %zu "
+              "through a building\n",
+              compared, one_vehicle, inside);
   EXPECT_GT(compared, 15u);
+}
+
+// Two reflections on one vehicle: a truck's cab and box, a car's bonnet and
+// windscreen (and through its windows, the cabin) form concave corners that
+// shoot and bounce rarely hits. The model's table of multi-bounce sequences
+// (plane waves from every direction cell against the model alone) proposes
+// them; every such exhaustive path is found, from antennas around three
+// trucks and two cars on open ground.
+TEST(ImageSearch, DoubleBouncesOnOneVehicleMatchExhaustiveAtOrder2) {
+  std::size_t compared = 0;
+  for (unsigned seed = 1; seed <= 2; ++seed) {
+    std::mt19937 rng(200 + seed);
+    auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+    meshkit::Scene sc;
+    add_ground(sc, 200);
+    tracer::TraceScene scene(sc);
+    const auto car = add_library_model(scene, "passenger");
+    const auto truck = add_library_model(scene, "truck");
+    std::vector<tracer::VehiclePose> poses;
+    for (int v = 0; v < 5; ++v)
+      poses.push_back({"v" + std::to_string(v), v < 3 ? truck : car, {u(-25, 25), u(-8, 8), 0}, u(0, 2 * tracer::kPi),
+                       {0, 0, 0}});
+    scene.set_vehicles(poses);
+    std::vector<tracer::Node> nodes;
+    for (int k = 0; k < 12; ++k) nodes.push_back(node("p" + std::to_string(k), {u(-30, 30), u(-15, 15), u(0.5, 3)}));
+    const auto def = tracer::trace_snapshot(scene, nodes, specular_config(2, tracer::CandidateSearch::image), {});
+    const auto ref = tracer::trace_snapshot(scene, nodes, specular_config(2, tracer::CandidateSearch::exhaustive), {});
+    const auto names = scene.object_names();
+    for (std::size_t p = 0; p < ref.pairs.size(); ++p)
+      for (const auto& path : ref.pairs[p].paths) {
+        std::vector<std::string> refl;
+        for (const auto& it : path.interactions)
+          if (it.type == tracer::InteractionType::specular) refl.push_back(names[it.object]);
+        if (refl.size() != 2 || refl[0] != refl[1] || refl[0].rfind("vehicle/", 0) != 0) continue;
+        ++compared;
+        const bool found = std::any_of(def.pairs[p].paths.begin(), def.pairs[p].paths.end(), [&](const auto& g) {
+          return std::fabs(g.tau_s - path.tau_s) < 1e-15 &&
+                 std::fabs(std::norm(g.a) - std::norm(path.a)) <= 1e-9 * std::norm(path.a);
+        });
+        EXPECT_TRUE(found) << "seed " << seed << " pair " << p << ": two reflections on " << refl[0] << ", "
+                           << 10 * std::log10(std::norm(path.a)) << " dB, " << path.interactions.size() - 2 << " slabs";
+      }
+  }
+  std::printf("two reflections on one vehicle: %zu paths compared\n", compared);
+  EXPECT_GE(compared, 8u);
 }

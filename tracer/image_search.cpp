@@ -1,6 +1,7 @@
 #include "tracer/image_search.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 namespace raysweep::tracer {
@@ -268,6 +269,65 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
           if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
             out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
         });
+    }
+  }
+
+  // Orders 2 and 3 on one vehicle (its concave parts: hood and windscreen,
+  // a truck's cab and box), towards every receiver not riding it: the face
+  // sequences its model's table lists for the direction the wave arrives
+  // from, each decided by its images and on-face tests. Not for the
+  // source's own vehicle (the source sits inside its sphere).
+  for (std::size_t v = 0; max_order >= 2 && v + 1 < faces.vehicle_begin.size(); ++v) {
+    if (static_cast<int>(v) == nodes[src].vehicle) continue;
+    const auto& sv = faces.vehicle_spheres[v];
+    const Vec3 w = sv.centre - xs;
+    const double dist = norm(w);
+    if (dist <= sv.radius) continue;
+    const auto query = scene.vehicle_bounce_sequences(v, (1.0 / dist) * w, std::asin(sv.radius / dist));
+    for (const std::uint32_t id : *query.ids) {
+      const auto& sq = (*query.table)[id];
+      if (sq.order > max_order) continue;
+      std::array<Vec3, 4> img;
+      std::array<std::size_t, 3> fi{};
+      img[0] = xs;
+      bool ok = true;
+      for (int k = 0; k < sq.order && ok; ++k) {
+        fi[k] = faces.vehicle_begin[v] + sq.faces[k];
+        const Plane& pl = faces.planes[fi[k]];
+        const double dk = dot(pl.normal, img[k]) - pl.offset;
+        ok = dk != 0;
+        img[k + 1] = img[k] - (2 * dk) * pl.normal;
+      }
+      if (!ok) continue;
+      ++local.image_sources;
+      // The receivers whose line from the last image crosses the last face's
+      // sphere (a vectorised pass), then the exact walk back.
+      const int last = sq.order - 1;
+      const Plane& pl_last = faces.planes[fi[last]];
+      const double d_last = dot(pl_last.normal, img[last]) - pl_last.offset;
+      local.tests += rx.size();
+      if (!mark_crossings(rx, 0, pl_last, pl_last.offset - dot(pl_last.normal, xs), d_last, img[last + 1] - xs,
+                          faces.spheres[fi[last]], faces.spheres[fi[last]].centre - xs, faces.tol[fi[last]], scratch))
+        continue;
+      for (std::size_t r = 0; r < rx.size(); ++r) {
+        if (!scratch.hit[r] || nodes[receivers[r]].vehicle == static_cast<int>(v)) continue;
+        Vec3 target = receiver(r);
+        bool on = true;
+        for (int k = sq.order - 1; k >= 0 && on; --k) {
+          const Plane& pl = faces.planes[fi[k]];
+          const double di = dot(pl.normal, img[k]) - pl.offset, dt = dot(pl.normal, target) - pl.offset;
+          on = di * dt > 0;
+          if (!on) break;
+          ++local.tests;
+          const Vec3 q = crossing(img[k + 1], -di, target, dt);
+          on = on_face(fi[k], q);
+          target = q;
+        }
+        if (!on) continue;
+        ImageCandidate c{receivers[r], {}};
+        for (int k = 0; k < sq.order; ++k) c.faces.push_back(faces.refs[fi[k]]);
+        out.push_back(std::move(c));
+      }
     }
   }
 

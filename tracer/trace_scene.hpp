@@ -148,6 +148,24 @@ class TraceScene {
   // is not at the mount (then any face may be seen).
   const std::vector<std::uint32_t>* faces_seen_from_mount(std::size_t v, const Vec3& node) const;
 
+  // Face sequences of order 2 and 3 on one vehicle (its concave parts: hood
+  // and windscreen, mirrors, a truck's cab and box) that a wave arriving at
+  // vehicle v along the unit world direction `dir` (from the source towards
+  // the vehicle) may follow, for arrival directions within `spread` radians
+  // of it. A superset from a table built once per model, on first use:
+  // bundles of parallel rays from 16 x 16 direction cells (four directions
+  // each) against the model alone, up to three reflections. Faces are the
+  // model's face indices (FaceRef{v + 1, face}); `order` of them are used.
+  struct BounceSequence {
+    std::array<std::uint32_t, 3> faces{};
+    int order = 0;
+  };
+  struct BounceQuery {
+    const std::vector<BounceSequence>* table;  // the model's sequences
+    const std::vector<std::uint32_t>* ids;     // those to try (sorted)
+  };
+  BounceQuery vehicle_bounce_sequences(std::size_t v, const Vec3& dir, double spread) const;
+
   // Tables the path records index: materials by name ("concrete", "glass"...),
   // objects: static objects first ("way/123", "ground"), then one per vehicle
   // of the current frame ("vehicle/<id>").
