@@ -17,7 +17,12 @@
 // antenna's own included) is enumerated the same way for the (face, vehicle)
 // combinations the shoot-and-bounce rays' beams reach (BeamVehicle, below):
 // the rays sample a wall densely where they miss a small, far car's faces.
-// Vehicle-vehicle sequences and orders >= 3 come from shoot-and-bounce
+//   orders 2 and 3 on one vehicle (its concave corners, its cabin through
+//            the windows): the sequences the model's table lists for the
+//            direction the wave arrives from (TraceScene::
+//            vehicle_bounce_sequences), each decided by images and on-face
+//            tests.
+// Other vehicle-vehicle sequences and orders >= 3 come from shoot-and-bounce
 // (solver.cpp), merged with these.
 #pragma once
 
@@ -60,7 +65,7 @@ struct ImageFaces {
 bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence);
 ImageFaces image_faces(const TraceScene& scene);
 
-// Face sequences of order 1..max_order (at most 2) from node `src` to each
+// Face sequences of order 1..max_order (at most 3: only on one vehicle) from node `src` to each
 // node in `receivers` (sorted; lower and higher indices) whose reflection
 // points lie on their faces. Sequences that are their own reverse's
 // counterpart (order 1, static-static) are searched towards higher receivers
