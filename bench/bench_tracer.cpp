@@ -349,14 +349,15 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
                  (used->passenger_only ? ", mix passenger" : ", mix passenger:truck:bus 8:1:1"));
 }
 
-// Per-pair diffuse power (sum of |a|^2 over paths ending in a diffuse
+// Per-pair diffuse power (sum of |a|^2 over paths with a diffuse
 // interaction).
 std::vector<double> diffuse_power(const tracer::Snapshot& snap) {
   std::vector<double> p;
   for (const auto& pair : snap.pairs) {
     double sum = 0;
     for (const auto& path : pair.paths)
-      if (!path.interactions.empty() && path.interactions.back().type == tracer::InteractionType::diffuse)
+      if (std::any_of(path.interactions.begin(), path.interactions.end(),
+                      [](const auto& in) { return in.type == tracer::InteractionType::diffuse; }))
         sum += std::norm(path.a);
     p.push_back(sum);
   }

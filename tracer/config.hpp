@@ -70,8 +70,10 @@ struct TracerConfig {
   // Rays: first-order scattering (a -> surface -> b, nothing crossed before
   // the surface) is gathered from both ends' rays and combined by multiple
   // importance sampling (balance heuristic on the two ends' hit densities),
-  // so points near either end are sampled densely. Off: the lower end's
-  // rays alone (the one-sided estimator radio maps use; tests).
+  // so points near either end are sampled densely; scattering before
+  // reflections (a -> surface -> reflections -> b) from the higher end's
+  // rays, which reach it. Off: the lower end's rays alone (scattering after
+  // reflections only: the one-sided estimator radio maps use; tests).
   bool diffuse_both_ends = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the

@@ -411,6 +411,9 @@ struct DiffuseAcc {
   int n = 0;
   std::array<FaceRef, kMaxDepth + 1> faces{};
   std::array<Vec3, kMaxDepth> prefix{};
+  // The chain runs the other way (the scattering first, then the
+  // reflections in reverse order): gathered by the pair's higher end.
+  bool scatter_first = false;
   void add(const DiffuseAcc& o) {
     power += o.power;
     tau += o.tau;
@@ -423,6 +426,7 @@ struct DiffuseAcc {
       n = o.n;
       faces = o.faces;
       prefix = o.prefix;
+      scatter_first = o.scatter_first;
     }
   }
 };
@@ -432,8 +436,10 @@ using DiffuseBins = std::vector<std::pair<DiffuseKey, DiffuseAcc>>;
 struct DiffuseTargets {
   std::vector<std::uint32_t> rx;  // receivers j > src of requested, in-range pairs
   // Both ends' estimator (TracerConfig::diffuse_both_ends): the lower ends
-  // j < src of requested pairs, whose first-order scattering src's rays
-  // sample too, and the weights that combine the two ends' samples.
+  // j < src of requested pairs. src's rays sample their first-order
+  // scattering too (the two ends' samples combined by weights), and alone
+  // the scattering that comes before reflections or slabs (j -> x -> ...
+  // -> src: the reverse of what src's rays reach after bouncing).
   std::vector<std::uint32_t> rev;
   bool both_ends = false;
   double bin_s = 1e-7;  // delay bin width
@@ -584,7 +590,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         const bool mis = diffuse->both_ends && st.seq.n == 0 && st.transmissions == 0;
         const double cos_in = std::fabs(dot(st.d, plane.normal));
         const auto record = [&](std::uint32_t j, bool reverse, double power, double tau, const Vec3& departure,
-                                const Vec3& arrival, double dl) {
+                                const Vec3& arrival, double dl, bool scatter_first = false) {
           DiffuseKey dk;
           dk.rx = j;
           dk.object = scene.object(hit.face);
@@ -604,6 +610,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, c.faces.begin());
           c.faces[st.seq.n] = hit.face;
           c.prefix = st.points;
+          c.scatter_first = scatter_first;
           (*diffuse_out)[it->second].second.add(c);
         };
         // Received power from the reflected field e_in (the field a smooth
@@ -621,21 +628,32 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const double g_eff = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * er2 / et2;
           return s_coef * s_coef * f * g_eff * lambda * lambda * d_omega / (16 * kPi * kPi * rs * rs);
         };
-        for (std::uint32_t j : diffuse->rx) {
+        // Towards node j along ks: this ray's chain, then the scattering.
+        const auto gather = [&](std::uint32_t j, bool reverse) {
           const Vec3 w = nodes[j].position - p;
           const double rs = norm(w);
-          if (rs < 1e-6) continue;
+          if (rs < 1e-6) return;
           const Vec3 ks = (1.0 / rs) * w;
           const double f = lobe(ks);
-          if (!(f > 0)) continue;
+          if (!(f > 0)) return;
           ++rays;
-          if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
+          if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) return;
           double power = scattered(e_ref, ks, f, rs, nodes[j].forward);
           if (mis) power *= balance_weight(cos_in, len_in, std::fabs(dot(ks, plane.normal)), rs);
-          if (!(power > 0)) continue;
-          record(j, false, power, (len_in + rs) / kSpeedOfLight, lattice[r], -1.0 * ks,
-                 dl_in + dot(ks, nodes[j].velocity - v_surf));
-        }
+          if (!(power > 0)) return;
+          const double dl = dl_in + dot(ks, nodes[j].velocity - v_surf), tau = (len_in + rs) / kSpeedOfLight;
+          if (!reverse) {
+            record(j, false, power, tau, lattice[r], -1.0 * ks, dl);
+          } else {
+            // The pair (j, src) read from j: scattered first, then this
+            // ray's reflections back to src (evaluated along this ray's
+            // direction; equal for a reciprocal lobe).
+            record(j, true, power, tau, -1.0 * ks, lattice[r], dl, true);
+          }
+        };
+        for (std::uint32_t j : diffuse->rx) gather(j, false);
+        if (diffuse->both_ends && !mis)
+          for (std::uint32_t j : diffuse->rev) gather(j, true);
         // The same first-order scattering for the pairs (j, src), j < src,
         // evaluated as from j to src (each pair's field runs from its lower
         // end): the point is lit by j, and seen by src along this ray.
@@ -1088,12 +1106,19 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         if (!(acc.power > 0)) continue;
         Path path = diffuse_record(acc.power, acc.tau, acc.departure, acc.arrival, acc.doppler, lambda);
         const double w = 1.0 / acc.power;
-        for (int q = 0; q + 1 < acc.n; ++q)
-          path.interactions.push_back(Interaction{InteractionType::specular, scene.object(acc.faces[q]),
-                                                  scene.material(acc.faces[q]), acc.prefix[q]});
         const FaceRef last = acc.faces[acc.n - 1];
-        path.interactions.push_back(
-            Interaction{InteractionType::diffuse, scene.object(last), scene.material(last), w * acc.point});
+        const Interaction scatter{InteractionType::diffuse, scene.object(last), scene.material(last), w * acc.point};
+        const auto reflection = [&](int q) {
+          return Interaction{InteractionType::specular, scene.object(acc.faces[q]), scene.material(acc.faces[q]),
+                             acc.prefix[q]};
+        };
+        if (acc.scatter_first) {  // scattered first, then the reflections in reverse order
+          path.interactions.push_back(scatter);
+          for (int q = acc.n - 2; q >= 0; --q) path.interactions.push_back(reflection(q));
+        } else {
+          for (int q = 0; q + 1 < acc.n; ++q) path.interactions.push_back(reflection(q));
+          path.interactions.push_back(scatter);
+        }
         res.paths.push_back(std::move(path));
       }
     }
@@ -1146,10 +1171,15 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     snap.stats.dropped_threshold += r.dropped_threshold;
     snap.stats.out_of_range_pairs += r.out_of_range;
     for (const auto& path : r.paths) {
-      if (path.interactions.empty()) continue;
-      const auto t = path.interactions.back().type;
-      snap.stats.diffraction_paths += t == InteractionType::diffraction;
-      snap.stats.diffuse_paths += t == InteractionType::diffuse;
+      // A diffuse record scatters once, last or (gathered by the pair's
+      // higher end) first; a diffracted path ends at its edge.
+      bool diffracted = false, diffuse = false;
+      for (const auto& in : path.interactions) {
+        diffracted |= in.type == InteractionType::diffraction;
+        diffuse |= in.type == InteractionType::diffuse;
+      }
+      snap.stats.diffraction_paths += diffracted;
+      snap.stats.diffuse_paths += diffuse;
     }
   }
   return snap;
