@@ -295,7 +295,9 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
         fi[k] = faces.vehicle_begin[v] + sq.faces[k];
         const Plane& pl = faces.planes[fi[k]];
         const double dk = dot(pl.normal, img[k]) - pl.offset;
-        ok = dk != 0;
+        // The image before reflection k lies on the side the face is met
+        // from (the table's rays came from there).
+        ok = ((sq.front >> k) & 1u) ? dk > 0 : dk < 0;
         img[k + 1] = img[k] - (2 * dk) * pl.normal;
       }
       if (!ok) continue;

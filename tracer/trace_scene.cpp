@@ -856,7 +856,7 @@ std::pair<int, int> bounce_cell(const Vec3& d) {
 // (fixed directions and grid).
 void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see_through,
                         std::vector<TraceScene::BounceSequence>& seqs, std::vector<std::vector<std::uint32_t>>& cells) {
-  using Key = std::array<std::uint32_t, 4>;  // faces, then the order
+  using Key = std::array<std::uint32_t, 5>;  // faces, the order, the sides (BounceSequence::front)
   const Vec3 c = s.bounds.centre;
   const double r = s.bounds.radius;
   constexpr int kHalf = 20, kMaxCrossings = 4, kCellCount = kBounceCells * kBounceCells;
@@ -871,6 +871,7 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
       double tnear;
       int n, crossings;
       std::array<std::uint32_t, 3> seq;
+      unsigned front;
     };
     std::vector<Ray> stack;
     auto& keys = found[cell];
@@ -882,7 +883,7 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
       for (int gx = -kHalf; gx <= kHalf; ++gx)
         for (int gy = -kHalf; gy <= kHalf; ++gy) {
           if (gx * gx + gy * gy > kHalf * kHalf) continue;
-          stack.push_back({c - (2 * r) * d + (gx * h) * e1 + (gy * h) * e2, d, 0, 0, 0, {}});
+          stack.push_back({c - (2 * r) * d + (gx * h) * e1 + (gy * h) * e2, d, 0, 0, 0, {}, 0u});
           while (!stack.empty()) {
             Ray ray = stack.back();
             stack.pop_back();
@@ -892,13 +893,15 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
             const std::uint32_t f = s.tri_face[rh.hit.primID];
             const Vec3 p = ray.o + static_cast<double>(rh.ray.tfar) * ray.d;
             if (see_through[f] && ray.crossings < kMaxCrossings)
-              stack.push_back({p, ray.d, 1e-4, ray.n, ray.crossings + 1, ray.seq});
-            Ray next{p, ray.d, 1e-4, ray.n + 1, ray.crossings, ray.seq};
-            next.seq[ray.n] = f;
-            if (next.n >= 2)
-              keys.push_back({next.seq[0], next.seq[1], next.n == 3 ? next.seq[2] : 0u, static_cast<std::uint32_t>(next.n)});
-            if (next.n == 3) continue;
+              stack.push_back({p, ray.d, 1e-4, ray.n, ray.crossings + 1, ray.seq, ray.front});
             const Vec3& n = s.face_plane[f].normal;
+            Ray next{p, ray.d, 1e-4, ray.n + 1, ray.crossings, ray.seq, ray.front};
+            next.seq[ray.n] = f;
+            if (dot(ray.d, n) < 0) next.front |= 1u << ray.n;
+            if (next.n >= 2)
+              keys.push_back({next.seq[0], next.seq[1], next.n == 3 ? next.seq[2] : 0u, static_cast<std::uint32_t>(next.n),
+                              next.front});
+            if (next.n == 3) continue;
             next.d = ray.d - (2 * dot(ray.d, n)) * n;
             stack.push_back(next);
           }
@@ -913,7 +916,7 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
   for (int cell = 0; cell < kCellCount; ++cell)
     for (const Key& k : found[cell]) {
       auto [it, fresh] = ids.try_emplace(k, static_cast<std::uint32_t>(seqs.size()));
-      if (fresh) seqs.push_back({{k[0], k[1], k[2]}, static_cast<int>(k[3])});
+      if (fresh) seqs.push_back({{k[0], k[1], k[2]}, static_cast<int>(k[3]), k[4]});
       per_cell[cell].push_back(it->second);
     }
   // Per level and cell, the union over the cells whose centres lie within

@@ -159,6 +159,9 @@ class TraceScene {
   struct BounceSequence {
     std::array<std::uint32_t, 3> faces{};
     int order = 0;
+    // Bit k set: face k is met from the side its normal points to (the
+    // ray, and so the image before that reflection, on the normal's side).
+    unsigned front = 0;
   };
   struct BounceQuery {
     const std::vector<BounceSequence>* table;  // the model's sequences
