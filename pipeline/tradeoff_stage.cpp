@@ -360,6 +360,18 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
         grid.push_back(s);
       }
     }
+    // Diffuse by rays: both ends' samples, or the lower end's alone.
+    if (base.diffuse && base.diffuse_integration == tracer::DiffuseIntegration::rays) {
+      s = variant(base.diffuse_both_ends ? "diffuse one end" : "diffuse both ends");
+      s.tracer.diffuse_both_ends = !base.diffuse_both_ends;
+      grid.push_back(s);
+    }
+    // The per-model multi-bounce table of the image search.
+    if (base.candidates == tracer::CandidateSearch::image && base_depth >= 2) {
+      s = variant(base.vehicle_multi_bounce ? "-vehicle multi-bounce" : "+vehicle multi-bounce");
+      s.tracer.vehicle_multi_bounce = !base.vehicle_multi_bounce;
+      grid.push_back(s);
+    }
     // What the exact image search costs and buys over sampling alone.
     if (base.candidates != tracer::CandidateSearch::exhaustive) {
       const bool image = base.candidates == tracer::CandidateSearch::image;
@@ -618,6 +630,8 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                                    : s.tracer.candidates == tracer::CandidateSearch::sbr ? "sbr"
                                                                                           : "exhaustive"},
                     {"path_threshold_db", s.tracer.path_threshold_db},
+                    {"diffuse_both_ends", s.tracer.diffuse_both_ends},
+                    {"vehicle_multi_bounce", s.tracer.vehicle_multi_bounce},
                     {"lod", s.lod},
                     {"static_simplification", s.simplify_m},
                     {"static_triangles", scenes.at(s.simplify_m).stats.triangles_after},

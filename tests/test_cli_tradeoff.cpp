@@ -174,13 +174,14 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
       << header;
   // Reference + rays {256, 1024} x depths {1, 2} + diffuse, diffraction,
   // the vehicles' knife edges and refraction toggled + all mechanisms + the
-  // sampled search alone + the coarser LOD + static geometry at 2 m.
-  ASSERT_EQ(rows.size(), 13u);
+  // multi-bounce table off + the sampled search alone + the coarser LOD +
+  // static geometry at 2 m.
+  ASSERT_EQ(rows.size(), 14u);
   std::map<std::string, const std::map<std::string, std::string>*> by_label;
   for (const auto& row : rows) by_label[row.at("label")] = &row;
   for (const char* label : {"reference", "r256 d1", "r256 d2", "r1024 d1", "r1024 d2", "r1024 d2 +diffuse",
                             "r1024 d2 +diffraction", "r1024 d2 -vehicle knife edges", "r1024 d2 -refraction",
-                            "r1024 d2 all mechanisms",
+                            "r1024 d2 all mechanisms", "r1024 d2 -vehicle multi-bounce",
                             "r1024 d2 sbr search", "r1024 d2 lod1",
                             "r1024 d2 static 2m"})
     EXPECT_TRUE(by_label.count(label)) << label;

@@ -75,6 +75,11 @@ struct TracerConfig {
   // rays, which reach it. Off: the lower end's rays alone (scattering after
   // reflections only: the one-sided estimator radio maps use; tests).
   bool diffuse_both_ends = true;
+  // Image search: two and three reflections on one vehicle (its concave
+  // corners, its cabin through the windows) from the per-model table of
+  // multi-bounce sequences (TraceScene::vehicle_bounce_sequences). Off:
+  // those come from shoot and bounce alone.
+  bool vehicle_multi_bounce = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the
   // node that looks (visibility) or from the nearer end (integration;

@@ -176,7 +176,7 @@ bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, dou
 
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats) {
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce) {
   if (max_order < 1 || receivers.empty()) return;
   ImageSearchStats local;
   const Vec3 xs = nodes[src].position;
@@ -277,7 +277,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   // sequences its model's table lists for the direction the wave arrives
   // from, each decided by its images and on-face tests. Not for the
   // source's own vehicle (the source sits inside its sphere).
-  for (std::size_t v = 0; max_order >= 2 && v + 1 < faces.vehicle_begin.size(); ++v) {
+  for (std::size_t v = 0; multi_bounce && max_order >= 2 && v + 1 < faces.vehicle_begin.size(); ++v) {
     if (static_cast<int>(v) == nodes[src].vehicle) continue;
     const auto& sv = faces.vehicle_spheres[v];
     const Vec3 w = sv.centre - xs;

@@ -74,7 +74,7 @@ ImageFaces image_faces(const TraceScene& scene);
 // and the nodes.
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr);
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true);
 
 // A static face and a vehicle the shoot-and-bounce rays of one source reach
 // in that order (a ray reflected by the face passes within the vehicle's

@@ -897,7 +897,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     faces = image_faces(scene);
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
       if (partners[i].empty()) return;
-      image_candidates(scene, faces, nodes, i, partners[i], std::min(cfg.max_depth, 3), found[i], &istats[i]);
+      image_candidates(scene, faces, nodes, i, partners[i], std::min(cfg.max_depth, 3), found[i], &istats[i],
+                       cfg.vehicle_multi_bounce);
     });
     for (const auto& st : istats) {
       snap.stats.image_sources += st.image_sources;
