@@ -68,7 +68,9 @@ std::string suggest(const std::string& word, const std::vector<std::string>& nam
   std::string best;
   std::size_t best_d = limit + 1;
   for (const auto& n : names) {
-    const std::size_t d = edit_distance(word, n);
+    std::size_t d = edit_distance(word, n);
+    // A key without its unit suffix (d0 for d0_m) is one slip, however short.
+    if (!word.empty() && n.rfind(word + "_", 0) == 0) d = std::min<std::size_t>(d, 1);
     if (d < best_d) best = n, best_d = d;
   }
   return best;

@@ -147,6 +147,8 @@ Value<T> parsed(std::string type, std::string range, std::string expect, std::fu
       return parse(*s);
     } catch (const std::invalid_argument& e) {
       at.fail(n, e.what());
+    } catch (const std::exception&) {  // a parser's own limits (std::out_of_range...): still the file's fault
+      at.expected(n, expect);
     }
   };
   v.write = std::move(write);

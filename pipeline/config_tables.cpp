@@ -368,10 +368,10 @@ const Table<TraceSettings>& tracer_table() {
           "search rays continue through slabs within this loss budget");
     t.key("diffuse", boolean(), FIELD(tracer.diffuse), "", "effective-roughness diffuse scattering");
     t.key("diffuse_integration",
-          enumeration<tracer::DiffuseIntegration>({{"rays", tracer::DiffuseIntegration::rays},
-                                                   {"tiles", tracer::DiffuseIntegration::tiles}}),
+          enumeration<tracer::DiffuseIntegration>({{"tiles", tracer::DiffuseIntegration::tiles},
+                                                   {"rays", tracer::DiffuseIntegration::rays}}),
           FIELD(tracer.diffuse_integration), "",
-          "rays: over the shoot-and-bounce hits, any order; tiles: deterministic, first order");
+          "tiles: deterministic, first order; rays: over the shoot-and-bounce hits, any order");
     t.key("diffuse_tile_m", number(above(0)), FIELD(tracer.diffuse_tile_m), "m", "tiles: the finest tile's edge");
     t.key("diffuse_tile_ratio", number(above(0)), FIELD(tracer.diffuse_tile_ratio), "",
           "tiles: largest tile over its distance");

@@ -81,7 +81,7 @@ TEST(ConfigSchema, EnumErrorsSuggestTheClosestValue) {
   EXPECT_EQ(error_of("[tracer]\ncandidates = \"imag\"\n"),
             ":2: tracer.candidates: expected \"image\", \"sbr\" or \"exhaustive\", got \"imag\" (did you mean \"image\"?)");
   EXPECT_EQ(error_of("[tracer]\ndiffuse_integration = \"voxels\"\n"),
-            ":2: tracer.diffuse_integration: expected \"rays\" or \"tiles\", got \"voxels\"");
+            ":2: tracer.diffuse_integration: expected \"tiles\" or \"rays\", got \"voxels\"");
   EXPECT_EQ(error_of("[sweep]\noutside = 1\n"), ":2: sweep.outside: expected \"error\" or \"drop\", got 1");
   EXPECT_EQ(error_of("[sinr]\nrat_by_vtype = { bus = \"lte\" }\n"),
             ":2: sinr.rat_by_vtype.bus: expected \"80211p\", \"nrv2x\" or \"none\", got \"lte\"");
@@ -129,6 +129,7 @@ TEST(ConfigSchema, UnknownKeysAndTablesSuggestTheClosestName) {
             ":3: sinr.nr_fractoin: unknown key (did you mean 'nr_fraction'?)");
   EXPECT_EQ(error_of("[tracer]\nmax_dept = 3\n"), ":2: tracer.max_dept: unknown key (did you mean 'max_depth'?)");
   EXPECT_EQ(error_of("[tracer]\ncompletely_else = 3\n"), ":2: tracer.completely_else: unknown key");
+  EXPECT_EQ(error_of("[radiomap]\nvoxel = 1\n"), ":2: radiomap.voxel: unknown key (did you mean 'voxel_m'?)");
   EXPECT_EQ(error_of("[scnee]\n"), ":1: unknown table [scnee] (did you mean [scene]?)");
   EXPECT_EQ(error_of("[report]\n"), ":1: unknown table [report]");
   EXPECT_EQ(error_of("[sweep.extra]\n"), ":1: sweep.extra: unknown key");
