@@ -79,9 +79,10 @@ CityConfig load_city_config(const std::string& path) {
   file.read(traffic_table(), traffic);
   c.sumocfg = traffic.sumo.sumocfg;
   c.fcd = traffic.fcd;
-  if (c.osm.empty() == c.mitsuba.empty()) throw ConfigError(path + ": give exactly one of city.osm and city.mitsuba");
+  if (c.osm.empty() == c.mitsuba.empty())
+    file.fail("city", c.osm.empty() ? "osm" : "mitsuba", "give exactly one of city.osm and city.mitsuba");
   if (!c.sumocfg.empty() && !c.fcd.empty())
-    throw ConfigError(path + ": give at most one of traffic.sumocfg and traffic.fcd");
+    file.fail("traffic", "fcd", "give at most one of traffic.sumocfg and traffic.fcd");
   for (const auto* p : {&c.osm, &c.net, &c.mitsuba, &c.rsus, &c.sumocfg, &c.fcd})
     if (!p->empty() && !fs::exists(*p))
       throw ConfigError(path + ": input " + *p + " not found" +
@@ -96,12 +97,13 @@ namespace {
 
 TrafficArgs load_traffic_args(const std::string& path, const CityConfig& city, const std::string& out) {
   TrafficSettings t;
-  ConfigFile(path).read(traffic_table(), t);
+  const ConfigFile file(path);
+  file.read(traffic_table(), t);
   TrafficArgs a = t.sumo;
   a.net = city.net;
   a.sumocfg = city.sumocfg;
   a.out = out;
-  if (!(a.end_s > a.begin_s)) throw ConfigError(path + ": traffic.end_s: must be after traffic.begin_s");
+  if (!(a.end_s > a.begin_s)) file.fail("traffic", "end_s", "must be after traffic.begin_s");
   return a;
 }
 

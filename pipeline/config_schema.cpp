@@ -85,6 +85,8 @@ std::string quoted_alternatives(const std::vector<std::string>& names) {
   return out;
 }
 
+std::string plural(const std::string& type) { return !type.empty() && type.back() == 's' ? type : type + "s"; }
+
 std::string doc_value(const nlohmann::json& j) {
   if (j.is_number_float()) return fmt_number(j.get<double>());
   if (j.is_array()) {

@@ -51,6 +51,8 @@ std::string describe(const toml::node& n);
 std::string suggest(const std::string& word, const std::vector<std::string>& names);
 // "\"a\", \"b\" or \"c\"".
 std::string quoted_alternatives(const std::vector<std::string>& names);
+// "numbers" for "number": element types in array descriptions.
+std::string plural(const std::string& type);
 // A default value as docs/config.md shows it: 5900000000, [1, 0.5], "text".
 std::string doc_value(const nlohmann::json& j);
 
@@ -173,12 +175,11 @@ Value<T> checked(Value<T> v, std::function<bool(const T&)> ok, std::string expec
 template <class T>
 Value<std::vector<T>> list(Value<T> elem, std::size_t min = 0, std::size_t max = std::numeric_limits<std::size_t>::max()) {
   Value<std::vector<T>> v;
-  v.type = "array of " + elem.type + (elem.type.back() == 's' || elem.type.back() == ']' ? "" : "s");
-  if (min == max) v.type = std::to_string(min) + " " + elem.type + (min == 1 ? "" : "s");
-  v.range = elem.range.empty() ? "" : "each " + elem.range;
-  if (min > 0 && min != max) v.range += (v.range.empty() ? "" : ", ") + std::string("at least ") + std::to_string(min);
-  v.expect = (min == max ? "an array of " + std::to_string(min) + " " : "an array of ") + elem.type +
-             (elem.type.back() == 's' ? "" : "s") + (min > 0 && min != max ? " (at least " + std::to_string(min) + ")" : "");
+  const std::string of = min == max ? std::to_string(min) + " " + plural(elem.type) : plural(elem.type);
+  const std::string at_least_min = min > 0 && min != max ? "at least " + std::to_string(min) : "";
+  v.type = min == max ? of : "array of " + of;
+  v.range = elem.range.empty() ? at_least_min : "each " + elem.range + (at_least_min.empty() ? "" : ", " + at_least_min);
+  v.expect = "an array of " + of + (at_least_min.empty() ? "" : " (" + at_least_min + ")");
   v.sub = elem.sub;
   v.read = [elem, min, max, expect = v.expect](const toml::node& n, const At& at) {
     const toml::array* a = n.as_array();

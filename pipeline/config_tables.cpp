@@ -612,6 +612,13 @@ ConfigFile::ConfigFile(const std::string& path) {
   }
 }
 
+void ConfigFile::fail(const std::string& table, const std::string& key, const std::string& msg) const {
+  const At at{&src_, table + "." + key};
+  if (const toml::node* n = root_.at_path(table + "." + key).node()) at.fail(*n, msg);
+  if (const toml::node* n = root_.get(table)) at.fail(*n, msg);
+  throw ConfigError(src_.file + ": " + at.key + ": " + msg);
+}
+
 json effective_config(const std::string& path) {
   json out = json::object();
   if (path.empty()) {

@@ -38,6 +38,9 @@ class ConfigFile {
     return node != nullptr;
   }
   const std::string& path() const { return src_.file; }
+  // A ConfigError about table.key that spans several keys (end before begin):
+  // at the key's line when the file gives it, else at the table's, else the file.
+  [[noreturn]] void fail(const std::string& table, const std::string& key, const std::string& msg) const;
   // The table's TOML node as written (stage stamps hash it); nullptr when absent.
   const toml::node* node(const std::string& table) const { return root_.get(table); }
 

@@ -49,8 +49,9 @@ json SweepConfig::to_json() const { return sweep_table().write(*this); }
 SweepConfig load_sweep_config(const std::string& path) {
   SweepConfig c;
   if (path.empty()) return c;
-  ConfigFile(path).read(sweep_table(), c);
-  if (!(c.begin_s <= c.end_s)) throw ConfigError(path + ": sweep.end_s: must not be before sweep.begin_s");
+  const ConfigFile file(path);
+  file.read(sweep_table(), c);
+  if (!(c.begin_s <= c.end_s)) file.fail("sweep", "end_s", "must not be before sweep.begin_s");
   return c;
 }
 

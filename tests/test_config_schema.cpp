@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include <fstream>
+#include <functional>
 #include <regex>
 
 #include "pipeline/city_run.hpp"
@@ -148,6 +149,26 @@ TEST(ConfigSchema, EveryTableIsCheckedByEveryLoader) {
     EXPECT_NE(std::string(e.what()).find(":4: radiomap.voxl_m: unknown key (did you mean 'voxel_m'?)"), std::string::npos)
         << e.what();
   }
+}
+
+TEST(ConfigSchema, ErrorsAcrossKeysNameTheLineToo) {
+  const fs::path dir = scratch_dir("cfg");
+  const std::string c = (dir / "c.toml").string();
+  auto error = [&](const std::function<void()>& load) {
+    try {
+      load();
+    } catch (const ConfigError& e) {
+      return std::string(e.what()).substr(c.size());
+    }
+    return std::string();
+  };
+  write_text(c, "[sweep]\nbegin_s = 10\nend_s = 5\n");
+  EXPECT_EQ(error([&] { load_sweep_config(c); }), ":3: sweep.end_s: must not be before sweep.begin_s");
+  write_text(dir / "n.xml", "");
+  write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\nosm = \"n.xml\"\nmitsuba = \"n.xml\"\n");
+  EXPECT_EQ(error([&] { load_city_config(c); }), ":5: city.mitsuba: give exactly one of city.osm and city.mitsuba");
+  write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\n");
+  EXPECT_EQ(error([&] { load_city_config(c); }), ":1: city.osm: give exactly one of city.osm and city.mitsuba");
 }
 
 TEST(ConfigSchema, DefaultsAreFilledIn) {
