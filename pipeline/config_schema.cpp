@@ -85,6 +85,14 @@ std::string quoted_alternatives(const std::vector<std::string>& names) {
   return out;
 }
 
+std::optional<std::int64_t> integral(const toml::node& n) {
+  if (auto i = n.value_exact<std::int64_t>()) return i;
+  const auto d = n.value_exact<double>();
+  // 2^63 is exact as a double; everything in [-2^63, 2^63) converts safely.
+  if (!d || !std::isfinite(*d) || *d < -0x1p63 || *d >= 0x1p63 || std::trunc(*d) != *d) return std::nullopt;
+  return static_cast<std::int64_t>(*d);
+}
+
 std::string plural(const std::string& type) { return !type.empty() && type.back() == 's' ? type : type + "s"; }
 
 std::string doc_value(const nlohmann::json& j) {

@@ -51,6 +51,10 @@ std::string describe(const toml::node& n);
 std::string suggest(const std::string& word, const std::vector<std::string>& names);
 // "\"a\", \"b\" or \"c\"".
 std::string quoted_alternatives(const std::vector<std::string>& names);
+// An integer, or a float with an integral value that fits (2.0; not 2.5, 1e30,
+// nan). toml++'s own value<int64_t>() casts any float first, which is
+// undefined behaviour beyond the integer range; booleans are not integers.
+std::optional<std::int64_t> integral(const toml::node& n);
 // "numbers" for "number": element types in array descriptions.
 std::string plural(const std::string& type);
 // A default value as docs/config.md shows it: 5900000000, [1, 0.5], "text".
@@ -97,8 +101,8 @@ Value<I> integer(Range r = {}) {
   v.range = r.text();
   v.expect = "an integer" + (v.range.empty() ? "" : " " + v.range);
   v.read = [r, expect = v.expect](const toml::node& n, const At& at) -> I {
-    const auto x = n.value<std::int64_t>();
-    if (!x || n.is_boolean() || !r.contains(static_cast<double>(*x)) ||
+    const auto x = integral(n);
+    if (!x || !r.contains(static_cast<double>(*x)) ||
         *x < static_cast<long double>(std::numeric_limits<I>::min()) ||
         *x > static_cast<long double>(std::numeric_limits<I>::max()))
       at.expected(n, expect);

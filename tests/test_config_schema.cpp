@@ -55,8 +55,11 @@ TEST(ConfigSchema, IntegerErrors) {
   EXPECT_EQ(error_of("[sweep]\nblock_frames = 4294967296\n"),
             ":2: sweep.block_frames: expected an integer >= 1, got 4294967296");
   EXPECT_EQ(error_of("[sinr]\nseed = -1\n"), ":2: sinr.seed: expected an integer >= 0, got -1");
-  // An integral float is an integer, as TOML readers commonly take it.
+  // An integral float is an integer, as TOML readers commonly take it; a huge
+  // one is no integer (and no undefined cast on the way).
   EXPECT_EQ(error_of("[tracer]\nmax_depth = 2.0\n"), "");
+  EXPECT_EQ(error_of("[sinr]\nseed = 1e30\n"), ":2: sinr.seed: expected an integer >= 0, got 1e+30");
+  EXPECT_EQ(error_of("[sinr]\nseed = -inf\n"), ":2: sinr.seed: expected an integer >= 0, got -inf");
 }
 
 TEST(ConfigSchema, NumberErrors) {
