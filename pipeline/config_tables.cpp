@@ -117,7 +117,10 @@ Value<std::vector<std::pair<double, double>>> bler_curve() {
 const Table<CityConfig>& city_table() {
   static const Table<CityConfig> t = [] {
     Table<CityConfig> t("city", "The city's inputs for `raysweep run` (paths relative to this file).");
-    t.key("name", text(), FIELD(name), "", "the city's name; outputs go to out/<name> by default").required();
+    t.key("name", checked(text(), std::function<bool(const std::string&)>([](const std::string& s) { return !s.empty(); }),
+                          "a non-empty string"),
+          FIELD(name), "", "the city's name; outputs go to out/<name> by default")
+        .required();
     t.key("osm", path(), FIELD(osm), "", "OpenStreetMap extract (.osm, .osm.gz, .osm.bz2, .osm.pbf); give osm or mitsuba");
     t.key("mitsuba", path(), FIELD(mitsuba), "", "a Sionna RT / Mitsuba scene.xml instead of osm");
     t.key("net", path(), FIELD(net), "", "SUMO network (.net.xml[.gz]): projection, clipping, traffic").required();

@@ -126,6 +126,7 @@ TEST(ConfigSchema, ArrayMapAndTableErrors) {
   EXPECT_EQ(error_of("[materials.concrte]\neps_r = 4\n"),
             ":1: materials.concrte: unknown material 'concrte' (did you mean 'concrete'?)");
   EXPECT_EQ(error_of("[city]\nosm = \"a.osm\"\n"), ":1: city: missing key 'name'");
+  EXPECT_EQ(error_of("[city]\nname = \"\"\nnet = \"n.xml\"\n"), ":2: city.name: expected a non-empty string, got \"\"");
 }
 
 TEST(ConfigSchema, UnknownKeysAndTablesSuggestTheClosestName) {
