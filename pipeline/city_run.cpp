@@ -1,7 +1,6 @@
 #include "pipeline/city_run.hpp"
 
 #include <spdlog/spdlog.h>
-#include <toml++/toml.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -12,6 +11,7 @@
 
 #include "generators/dataset_schema.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/radiomap_stage.hpp"
@@ -21,7 +21,6 @@
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
-#include "pipeline/toml_fields.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
@@ -31,18 +30,16 @@ namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using namespace toml_fields;
 
 namespace {
 
-// The tables of the city file that configure a stage, as canonical text.
-std::string tables_text(const toml::table& root, const std::vector<std::string>& names) {
-  std::ostringstream s;
-  for (const auto& n : names) {
-    s << "[" << n << "]\n";
-    if (const toml::node* t = root.get(n)) s << toml::json_formatter{*t} << "\n";
-  }
-  return s.str();
+// The effective tables (schema order, defaults filled in) that configure a
+// stage, as text for its stamp: a comment or a key written out at its default
+// value does not rerun the stage, a changed value does.
+std::string tables_text(const json& effective, const std::vector<std::string>& names) {
+  std::string s;
+  for (const auto& n : names) s += "[" + n + "]\n" + effective.at(n).dump() + "\n";
+  return s;
 }
 
 fs::path relative_to(const fs::path& file, const std::string& p) {
@@ -75,39 +72,23 @@ class Stamps {
 }  // namespace
 
 CityConfig load_city_config(const std::string& path) {
-  load_scene_config(path);  // parses, checks the sections
-  const toml::table root = toml::parse_file(path);
+  const ConfigFile file(path);
   CityConfig c;
-  const fs::path file = fs::absolute(path);
-  const toml::table* city = root["city"].as_table();
-  if (!city) throw ConfigError(path + ": no [city] table (name, osm, net)");
-  for (auto&& [k, node] : *city) {
-    const std::string key(k.str()), full = "city." + key;
-    if (key == "name") c.name = text(path, full, node);
-    else if (key == "osm") c.osm = relative_to(file, text(path, full, node)).string();
-    else if (key == "net") c.net = relative_to(file, text(path, full, node)).string();
-    else if (key == "mitsuba") c.mitsuba = relative_to(file, text(path, full, node)).string();
-    else if (key == "rsus") c.rsus = relative_to(file, text(path, full, node)).string();
-    else if (key == "out") c.out = text(path, full, node);
-    else throw ConfigError(where(path, full, node) + ": unknown key (name, osm, net, mitsuba, rsus, out)");
-  }
-  if (c.name.empty()) throw ConfigError(path + ": key 'city.name' is required");
-  if (c.net.empty()) throw ConfigError(path + ": key 'city.net' is required (the SUMO network)");
-  if (c.osm.empty() == c.mitsuba.empty()) throw ConfigError(path + ": give exactly one of city.osm and city.mitsuba");
-  for (const auto* p : {&c.osm, &c.net, &c.mitsuba, &c.rsus})
+  if (!file.read(city_table(), c)) throw ConfigError(path + ": no [city] table (name, osm, net)");
+  TrafficSettings traffic;
+  file.read(traffic_table(), traffic);
+  c.sumocfg = traffic.sumo.sumocfg;
+  c.fcd = traffic.fcd;
+  if (c.osm.empty() == c.mitsuba.empty())
+    file.fail("city", c.osm.empty() ? "osm" : "mitsuba", "give exactly one of city.osm and city.mitsuba");
+  if (!c.sumocfg.empty() && !c.fcd.empty())
+    file.fail("traffic", "fcd", "give at most one of traffic.sumocfg and traffic.fcd");
+  for (const auto* p : {&c.osm, &c.net, &c.mitsuba, &c.rsus, &c.sumocfg, &c.fcd})
     if (!p->empty() && !fs::exists(*p))
       throw ConfigError(path + ": input " + *p + " not found" +
                         (p->find("shared/data") != std::string::npos
                              ? " (this recipe reads the third-party data in ../shared/data next to the checkout)"
                              : ""));
-  if (const toml::table* t = root["traffic"].as_table()) {
-    if (const auto* n = t->get("sumocfg")) c.sumocfg = relative_to(file, text(path, "traffic.sumocfg", *n)).string();
-    if (const auto* n = t->get("fcd")) c.fcd = relative_to(file, text(path, "traffic.fcd", *n)).string();
-    if (!c.sumocfg.empty() && !c.fcd.empty())
-      throw ConfigError(path + ": give at most one of traffic.sumocfg and traffic.fcd");
-    for (const auto* p : {&c.sumocfg, &c.fcd})
-      if (!p->empty() && !fs::exists(*p)) throw ConfigError(path + ": input " + *p + " not found");
-  }
   c.out = c.out.empty() ? ("out/" + c.name) : relative_to(fs::current_path() / "x", c.out).string();
   return c;
 }
@@ -115,38 +96,14 @@ CityConfig load_city_config(const std::string& path) {
 namespace {
 
 TrafficArgs load_traffic_args(const std::string& path, const CityConfig& city, const std::string& out) {
-  TrafficArgs a;
+  TrafficSettings t;
+  const ConfigFile file(path);
+  file.read(traffic_table(), t);
+  TrafficArgs a = t.sumo;
   a.net = city.net;
   a.sumocfg = city.sumocfg;
   a.out = out;
-  const toml::table root = toml::parse_file(path);
-  const toml::table* t = root["traffic"].as_table();
-  if (!t) return a;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "traffic." + key;
-    if (key == "sumocfg" || key == "fcd") continue;
-    if (key == "seed") {
-      const int v = integer(path, full, node);
-      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
-      a.seed = static_cast<std::uint64_t>(v);
-    } else if (key == "begin_s") a.begin_s = number(path, full, node);
-    else if (key == "end_s") a.end_s = number(path, full, node);
-    else if (key == "step_length_s") a.step_length_s = number(path, full, node);
-    else if (key == "period_s") a.period_s = number(path, full, node);
-    else if (key == "fringe_factor") a.fringe_factor = number(path, full, node);
-    else if (key == "classes") {
-      const toml::table* ct = node.as_table();
-      if (!ct) throw ConfigError(where(path, full, node) + ": expected a table of class = weight");
-      a.classes.clear();
-      for (auto&& [ck, cv] : *ct) a.classes[std::string(ck.str())] = number(path, full + "." + std::string(ck.str()), cv);
-    } else {
-      throw ConfigError(where(path, full, node) +
-                        ": unknown key (sumocfg, fcd, seed, begin_s, end_s, step_length_s, period_s, fringe_factor, "
-                        "classes)");
-    }
-  }
-  if (!(a.end_s > a.begin_s)) throw ConfigError(path + ": key 'traffic.end_s' must be after traffic.begin_s");
-  if (!(a.step_length_s > 0)) throw ConfigError(path + ": key 'traffic.step_length_s' must be > 0");
+  if (!(a.end_s > a.begin_s)) file.fail("traffic", "end_s", "must be after traffic.begin_s");
   return a;
 }
 
@@ -230,7 +187,7 @@ CityOutputs city_outputs(const std::string& city_file, const std::string& out_di
 json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   const CityConfig city = load_city_config(args.city);
   const fs::path out = args.out.empty() ? fs::path(city.out) : fs::path(args.out);
-  const toml::table root = toml::parse_file(args.city);
+  const json root = effective_config(args.city);
   // Every table is checked before the first stage runs: a typo in [sweep]
   // must not surface after an hour of scene building.
   load_vehicles_config(args.city);

@@ -1,5 +1,6 @@
-// Stage configuration from TOML. Unknown keys and wrong types are errors that
-// name the file, the key and its line: a typo must never fall back silently.
+// Stage configuration from TOML, read through the declared schema
+// (config_tables.hpp). Unknown keys and wrong types are errors that name the
+// file, the key and its line: a typo must never fall back silently.
 #pragma once
 
 #include <string>
@@ -20,8 +21,8 @@ struct SceneConfig {
   nlohmann::json to_json() const;
 };
 
-// Reads the [scene] table of `path` (other top-level tables are for other
-// stages and are checked by them). An empty path gives the defaults.
+// Reads the [scene] table of `path` (the other tables are checked too, and
+// read by their stages). An empty path gives the defaults.
 SceneConfig load_scene_config(const std::string& path);
 
 // Thrown for config errors; the message names file, key and line.

@@ -14,6 +14,7 @@
 #include "meshkit/errors.hpp"
 #include "pipeline/city_run.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/mpi_run.hpp"
 #include "pipeline/radiomap_stage.hpp"
@@ -256,6 +257,13 @@ int main(int argc, char** argv) {
   rn->add_option("--samples", render.samples, "Cycles samples per pixel")->check(CLI::PositiveNumber)
       ->capture_default_str();
 
+  // The declared schema of city.toml (pipeline/config_tables.cpp).
+  std::string config_file;
+  bool config_docs = false;
+  auto* cf = app.add_subcommand("config", "check a city/stage config and print its effective settings (JSON)");
+  cf->add_option("file", config_file, "city.toml or stage config (none: the defaults)");
+  cf->add_flag("--docs", config_docs, "print the schema as Markdown (docs/config.md)");
+
   std::string check_file;
   auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
   vd->add_option("file", check_file, "dataset .h5")->required();
@@ -403,6 +411,10 @@ int main(int argc, char** argv) {
       const auto info = raysweep::generators::dataset_info(check_file);
       std::cout << check_file << ": valid (" << info.value("format", std::string()) << " schema "
                 << info.value("schema_version", std::string()) << ")\n";
+    }
+    if (cf->parsed()) {
+      if (config_docs) std::cout << raysweep::pipeline::config_docs();
+      else std::cout << raysweep::pipeline::effective_config(config_file).dump(2) << "\n";
     }
     if (inf->parsed()) {
       const auto info = raysweep::generators::dataset_info(info_file);

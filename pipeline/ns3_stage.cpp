@@ -1,45 +1,26 @@
 #include "pipeline/ns3_stage.hpp"
 
 #include <spdlog/spdlog.h>
-#include <toml++/toml.h>
 
 #include <chrono>
 #include <filesystem>
 
 #include "generators/ns3_table.hpp"
-#include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/provenance.hpp"
-#include "pipeline/toml_fields.hpp"
 #include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using namespace toml_fields;
 
-json Ns3Settings::to_json() const { return {{"subcarriers_per_band", subcarriers_per_band}}; }
+json Ns3Settings::to_json() const { return ns3_table().write(*this); }
 
 Ns3Settings load_ns3_settings(const std::string& path) {
   Ns3Settings s;
   if (path.empty()) return s;
-  load_scene_config(path);  // validates the file and its top-level sections
-  const toml::table root = toml::parse_file(path);
-  const toml::table* t = root["ns3"].as_table();
-  if (!t) return s;
-  s.present = true;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "ns3." + key;
-    if (key == "enabled") {
-      s.enabled = boolean(path, full, node);
-    } else if (key == "subcarriers_per_band") {
-      const int v = integer(path, full, node);
-      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
-      s.subcarriers_per_band = static_cast<std::uint32_t>(v);
-    } else {
-      throw ConfigError(where(path, full, node) + ": unknown key");
-    }
-  }
+  s.present = ConfigFile(path).read(ns3_table(), s);
   return s;
 }
 

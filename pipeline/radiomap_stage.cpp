@@ -26,7 +26,7 @@
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/trace_stage.hpp"
-#include "pipeline/toml_fields.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/tracer.hpp"
@@ -120,48 +120,12 @@ RadioMapTx parse_radiomap_tx(const std::string& spec, const std::string& what) {
   return tx;
 }
 
-json RadioMapSettings::to_json() const {
-  json txs = json::array();
-  for (const auto& t : tx) {
-    txs.push_back({{"id", t.id}, {"position", t.position}});
-    if (t.power_given) txs.back()["power_dbm"] = t.power_dbm;
-  }
-  return {{"voxel_m", voxel_m}, {"z_min_m", z_min_m},       {"z_max_m", z_max_m}, {"region", region},
-          {"street_margin_m", street_margin_m}, {"diffuse_block_m", diffuse_block_m}, {"tx", txs}, {"png", png}};
-}
+json RadioMapSettings::to_json() const { return radiomap_table().write(*this); }
 
 RadioMapSettings load_radiomap_settings(const std::string& path) {
-  using namespace toml_fields;
   RadioMapSettings s;
   if (path.empty()) return s;
-  const toml::table root = toml::parse_file(path);
-  const toml::table* t = root["radiomap"].as_table();
-  if (!t) return s;
-  s.present = true;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "radiomap." + key;
-    if (key == "voxel_m") s.voxel_m = number(path, full, node);
-    else if (key == "z_min_m") s.z_min_m = number(path, full, node);
-    else if (key == "z_max_m") s.z_max_m = number(path, full, node);
-    else if (key == "street_margin_m") s.street_margin_m = number(path, full, node);
-    else if (key == "diffuse_block_m") s.diffuse_block_m = number(path, full, node);
-    else if (key == "png") s.png = boolean(path, full, node);
-    else if (key == "region") {
-      s.region = text(path, full, node);
-      if (s.region != "streets" && s.region != "all")
-        throw ConfigError(where(path, full, node) + ": expected \"streets\" or \"all\"");
-    } else if (key == "tx") {
-      for (const auto& spec : strings(path, full, node)) {
-        try {
-          s.tx.push_back(parse_radiomap_tx(spec, "transmitter"));
-        } catch (const std::invalid_argument& e) {
-          throw ConfigError(where(path, full, node) + ": " + e.what());
-        }
-      }
-    } else {
-      throw ConfigError(where(path, full, node) + ": unknown key");
-    }
-  }
+  s.present = ConfigFile(path).read(radiomap_table(), s);
   return s;
 }
 
@@ -174,14 +138,10 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
   RadioMapSettings s = load_radiomap_settings(args.config);
   const std::string cfg_name = args.config.empty() ? std::string("radiomap settings") : args.config;
   for (const auto& spec : args.tx) s.tx.push_back(parse_radiomap_tx(spec, "--tx"));
-  if (!(s.voxel_m > 0) || !std::isfinite(s.voxel_m))
-    throw std::invalid_argument(cfg_name + ": radiomap.voxel_m must be > 0 (got " + std::to_string(s.voxel_m) + ")");
-  if (!std::isfinite(s.z_min_m) || !std::isfinite(s.z_max_m) || s.z_min_m > s.z_max_m)
+  // Each key's own range is the schema's (config_tables.cpp); this one spans two keys.
+  if (s.z_min_m > s.z_max_m)
     throw std::invalid_argument(cfg_name + ": radiomap.z_min_m (" + std::to_string(s.z_min_m) +
                                 ") must not exceed radiomap.z_max_m (" + std::to_string(s.z_max_m) + ")");
-  if (!(s.street_margin_m > 0)) throw std::invalid_argument(cfg_name + ": radiomap.street_margin_m must be > 0");
-  if (!(s.diffuse_block_m >= 0) || !std::isfinite(s.diffuse_block_m))
-    throw std::invalid_argument(cfg_name + ": radiomap.diffuse_block_m must be >= 0");
   if (s.tx.empty()) throw std::invalid_argument("radiomap: no transmitter (--tx ID,X,Y,Z or [radiomap] tx)");
   std::set<std::string> ids;
   for (auto& t : s.tx) {

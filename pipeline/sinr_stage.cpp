@@ -1,7 +1,6 @@
 #include "pipeline/sinr_stage.hpp"
 
 #include <spdlog/spdlog.h>
-#include <toml++/toml.h>
 
 #include <chrono>
 #include <filesystem>
@@ -14,16 +13,15 @@
 #include "generators/sinr/sinr_file.hpp"
 #include "meshkit/errors.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
-#include "pipeline/toml_fields.hpp"
 #include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using namespace toml_fields;
 namespace gs = generators::sinr;
 
 std::string SinrModel::label() const {
@@ -44,189 +42,15 @@ SinrModel parse_sinr_model(const std::string& s) {
   return m;
 }
 
-namespace {
-
-std::vector<std::pair<double, double>> curve(const std::string& path, const std::string& key, const toml::node& n) {
-  const toml::array* a = n.as_array();
-  if (!a) throw ConfigError(where(path, key, n) + ": expected [[sinr_db, bler], ...]");
-  std::vector<std::pair<double, double>> out;
-  for (const auto& e : *a) {
-    const toml::array* p = e.as_array();
-    if (!p || p->size() != 2) throw ConfigError(where(path, key, e) + ": expected a [sinr_db, bler] pair");
-    out.emplace_back(number(path, key, *p->get(0)), number(path, key, *p->get(1)));
-  }
-  return out;
-}
-
-json curve_json(const std::vector<std::pair<double, double>>& c) {
-  json j = json::array();
-  for (const auto& [x, y] : c) j.push_back({x, y});
-  return j;
-}
-
-}  // namespace
-
-json SinrSettings::to_json() const {
-  const auto& c = config;
-  json rat_by_vtype = json::object();
-  for (const auto& [k, v] : c.rats.by_vtype) rat_by_vtype[k] = gs::rat_name(v);
-  json models_j = json::array();
-  for (const auto& m : models) models_j.push_back(m.label());
-  return {
-      {"seed", c.seed},
-      {"begin_s", c.begin_s},
-      {"end_s", c.end_s},
-      {"nr_fraction", c.rats.nr_fraction},
-      {"rat_by_vtype", rat_by_vtype},
-      {"nr_ids", c.rats.nr_ids},
-      {"wifi_ids", c.rats.wifi_ids},
-      {"silent_ids", c.rats.silent_ids},
-      {"active_vehicles", c.rats.active_vehicles},
-      {"rats_enabled", c.rats.enabled},
-      {"cam", c.cam.enabled},
-      {"cam_bytes", c.cam.bytes},
-      {"cam_low_frequency_bytes", c.cam.low_frequency_bytes},
-      {"cam_t_gen_min_s", c.cam.t_gen_min_s},
-      {"cam_t_gen_max_s", c.cam.t_gen_max_s},
-      {"cam_check_period_s", c.cam.check_period_s},
-      {"cpm", c.cpm.enabled},
-      {"cpm_period_s", c.cpm.period_s},
-      {"cpm_bytes", c.cpm.bytes},
-      {"wifi_data_rate_bps", c.wifi.data_rate_bps},
-      {"wifi_access_category", c.wifi_mac.access_category},
-      {"wifi_cca_signal_dbm", c.wifi_mac.cca_signal_dbm},
-      {"wifi_cca_energy_dbm", c.wifi_mac.cca_energy_dbm},
-      {"nr_bandwidth_hz", c.nr.bandwidth_hz},
-      {"nr_numerology", c.nr.numerology},
-      {"nr_subchannel_rbs", c.nr.subchannel_rbs},
-      {"nr_mcs", c.nr.mcs},
-      {"nr_data_symbols", c.nr.data_symbols},
-      {"nr_reservation_period_s", c.nr_mac.reservation_period_s},
-      {"nr_selection", c.nr_mac.sensing ? "sensing" : "random"},
-      {"nr_sensing_threshold_dbm", c.nr_mac.sensing_threshold_dbm},
-      {"nr_keep_probability", c.nr_mac.keep_probability},
-      {"nr_retransmissions", c.nr_mac.retransmissions},
-      {"tx_power_dbm", c.tx_power_dbm},
-      {"sensitivity_dbm", c.sensitivity_dbm},
-      {"sinr_threshold_db", c.sinr_threshold_db},
-      {"noise_figure_db", c.noise_figure_db},
-      {"gain_threshold_db", c.gain_threshold_db},
-      {"wifi_bler", curve_json(c.wifi_bler)},
-      {"nr_bler", curve_json(c.nr_bler)},
-      {"prr_range_m", c.prr_range_m},
-      {"max_receiver_distance_m", c.max_receiver_distance_m},
-      {"shadowing", stochastic.shadowing},
-      {"antenna_height_m", stochastic.antenna_height_m},
-      {"blocker_height_m", stochastic.blocker_height_m},
-      {"decorrelation_m", stochastic.decorrelation_m},
-      {"models", models_j},
-      {"schedule", shared_schedule ? "shared" : "own"},
-      {"isolated_runs", isolated_runs},
-  };
-}
+json SinrSettings::to_json() const { return sinr_table().write(*this); }
 
 SinrSettings load_sinr_settings(const std::string& path) {
   SinrSettings s;
   if (path.empty()) return s;
-  load_scene_config(path);  // validates the file and its top-level sections
-  const toml::table root = toml::parse_file(path);
-  const toml::table* t = root["sinr"].as_table();
-  if (!t) return s;
-  s.present = true;
-  auto& c = s.config;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "sinr." + key;
-    auto num = [&] { return number(path, full, node); };
-    auto positive = [&] {
-      const double v = num();
-      if (!(v > 0)) throw ConfigError(where(path, full, node) + ": must be > 0");
-      return v;
-    };
-    auto count = [&] {
-      const int v = integer(path, full, node);
-      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
-      return v;
-    };
-    auto rat = [&](const toml::node& n) {
-      try {
-        return gs::parse_rat(text(path, full, n));
-      } catch (const std::invalid_argument& e) {
-        throw ConfigError(where(path, full, n) + ": " + e.what());
-      }
-    };
-    if (key == "enabled") s.enabled = boolean(path, full, node);
-    else if (key == "seed") c.seed = static_cast<std::uint64_t>(count());
-    else if (key == "begin_s") c.begin_s = num();
-    else if (key == "end_s") c.end_s = num();
-    else if (key == "nr_fraction") c.rats.nr_fraction = num();
-    else if (key == "rat_by_vtype") {
-      const toml::table* m = node.as_table();
-      if (!m) throw ConfigError(where(path, full, node) + ": expected a table { vtype = \"nrv2x\" | \"80211p\" | \"none\" }");
-      for (auto&& [vt, r] : *m) c.rats.by_vtype[std::string(vt.str())] = rat(r);
-    } else if (key == "nr_ids") c.rats.nr_ids = strings(path, full, node);
-    else if (key == "wifi_ids") c.rats.wifi_ids = strings(path, full, node);
-    else if (key == "silent_ids") c.rats.silent_ids = strings(path, full, node);
-    else if (key == "active_vehicles") c.rats.active_vehicles = static_cast<std::uint32_t>(count());
-    else if (key == "rats_enabled") c.rats.enabled = text(path, full, node);
-    else if (key == "cam") c.cam.enabled = boolean(path, full, node);
-    else if (key == "cam_bytes") c.cam.bytes = static_cast<std::uint32_t>(count());
-    else if (key == "cam_low_frequency_bytes") c.cam.low_frequency_bytes = static_cast<std::uint32_t>(count());
-    else if (key == "cam_t_gen_min_s") c.cam.t_gen_min_s = positive();
-    else if (key == "cam_t_gen_max_s") c.cam.t_gen_max_s = positive();
-    else if (key == "cam_check_period_s") c.cam.check_period_s = positive();
-    else if (key == "cpm") c.cpm.enabled = boolean(path, full, node);
-    else if (key == "cpm_period_s") c.cpm.period_s = positive();
-    else if (key == "cpm_bytes") c.cpm.bytes = static_cast<std::uint32_t>(count());
-    else if (key == "wifi_data_rate_bps") c.wifi.data_rate_bps = positive();
-    else if (key == "wifi_access_category") c.wifi_mac.access_category = text(path, full, node);
-    else if (key == "wifi_cca_signal_dbm") c.wifi_mac.cca_signal_dbm = num();
-    else if (key == "wifi_cca_energy_dbm") c.wifi_mac.cca_energy_dbm = num();
-    else if (key == "nr_bandwidth_hz") c.nr.bandwidth_hz = positive();
-    else if (key == "nr_numerology") c.nr.numerology = count();
-    else if (key == "nr_subchannel_rbs") c.nr.subchannel_rbs = count();
-    else if (key == "nr_mcs") c.nr.mcs = count();
-    else if (key == "nr_data_symbols") c.nr.data_symbols = count();
-    else if (key == "nr_reservation_period_s") c.nr_mac.reservation_period_s = positive();
-    else if (key == "nr_selection") {
-      const std::string v = text(path, full, node);
-      if (v != "random" && v != "sensing") throw ConfigError(where(path, full, node) + ": expected \"random\" or \"sensing\"");
-      c.nr_mac.sensing = v == "sensing";
-    } else if (key == "nr_sensing_threshold_dbm") c.nr_mac.sensing_threshold_dbm = num();
-    else if (key == "nr_keep_probability") c.nr_mac.keep_probability = num();
-    else if (key == "nr_retransmissions") c.nr_mac.retransmissions = count();
-    else if (key == "tx_power_dbm") c.tx_power_dbm = num();
-    else if (key == "sensitivity_dbm") c.sensitivity_dbm = num();
-    else if (key == "sinr_threshold_db") c.sinr_threshold_db = num();
-    else if (key == "noise_figure_db") c.noise_figure_db = num();
-    else if (key == "gain_threshold_db") c.gain_threshold_db = num();
-    else if (key == "wifi_bler") c.wifi_bler = curve(path, full, node);
-    else if (key == "nr_bler") c.nr_bler = curve(path, full, node);
-    else if (key == "prr_range_m") c.prr_range_m = positive();
-    else if (key == "max_receiver_distance_m") c.max_receiver_distance_m = num();
-    else if (key == "shadowing") s.stochastic.shadowing = boolean(path, full, node);
-    else if (key == "antenna_height_m") s.stochastic.antenna_height_m = positive();
-    else if (key == "blocker_height_m") s.stochastic.blocker_height_m = positive();
-    else if (key == "decorrelation_m") s.stochastic.decorrelation_m = positive();
-    else if (key == "models") {
-      s.models.clear();
-      for (const auto& m : strings(path, full, node)) {
-        try {
-          s.models.push_back(parse_sinr_model(m));
-        } catch (const std::invalid_argument& e) {
-          throw ConfigError(where(path, full, node) + ": " + e.what());
-        }
-      }
-      if (s.models.empty()) throw ConfigError(where(path, full, node) + ": needs at least one model");
-    } else if (key == "schedule") {
-      const std::string v = text(path, full, node);
-      if (v != "shared" && v != "own") throw ConfigError(where(path, full, node) + ": expected \"shared\" or \"own\"");
-      s.shared_schedule = v == "shared";
-    } else if (key == "isolated_runs") s.isolated_runs = boolean(path, full, node);
-    else
-      throw ConfigError(where(path, full, node) + ": unknown key");
-  }
+  s.present = ConfigFile(path).read(sinr_table(), s);
+  // Settings that depend on each other (the schema checks each key alone).
   try {
-    c.check();
+    s.config.check();
   } catch (const std::invalid_argument& e) {
     throw ConfigError(path + ": [sinr]: " + e.what());
   }

@@ -1,7 +1,6 @@
 #include "pipeline/sweep_stage.hpp"
 
 #include <spdlog/spdlog.h>
-#include <toml++/toml.h>
 
 #include <chrono>
 #include <csignal>
@@ -19,10 +18,10 @@
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/fcd.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
-#include "pipeline/toml_fields.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
@@ -34,7 +33,6 @@ namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-using namespace toml_fields;
 
 namespace {
 
@@ -46,88 +44,14 @@ std::string block_name(std::uint64_t b) {
 
 }  // namespace
 
-json SweepConfig::to_json() const {
-  json j;
-  j["begin_s"] = begin_s;
-  j["end_s"] = end_s;
-  j["step_s"] = step_s;
-  j["ids"] = ids;
-  j["types"] = types;
-  j["area"] = area;
-  j["max_vehicles"] = max_vehicles;
-  j["outside"] = outside;
-  j["cfr"] = cfr;
-  j["lod"] = lod;
-  j["exclude_objects"] = exclude_objects;
-  j["d0_m"] = options.d0_m;
-  j["coherence_time_s"] = options.coherence_time_s;
-  j["cache"] = generators::cache_mode_name(options.cache);
-  j["cache_margin_m"] = options.cache_margin_m;
-  j["block_frames"] = options.block_frames;
-  return j;
-}
+json SweepConfig::to_json() const { return sweep_table().write(*this); }
 
 SweepConfig load_sweep_config(const std::string& path) {
   SweepConfig c;
   if (path.empty()) return c;
-  load_scene_config(path);  // validates the file and its top-level sections
-  const toml::table root = toml::parse_file(path);
-  const toml::table* t = root["sweep"].as_table();
-  if (!t) return c;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "sweep." + key;
-    auto non_negative = [&](double v) {
-      if (!(v >= 0)) throw ConfigError(where(path, full, node) + ": must be >= 0");
-      return v;
-    };
-    if (key == "begin_s") c.begin_s = number(path, full, node);
-    else if (key == "end_s") c.end_s = number(path, full, node);
-    else if (key == "step_s") c.step_s = non_negative(number(path, full, node));
-    else if (key == "ids") c.ids = strings(path, full, node);
-    else if (key == "types") c.types = strings(path, full, node);
-    else if (key == "area") {
-      const toml::array* a = node.as_array();
-      if (!a || a->size() != 4) throw ConfigError(where(path, full, node) + ": expected [xmin, ymin, xmax, ymax]");
-      for (const auto& e : *a) c.area.push_back(number(path, full, e));
-      if (!(c.area[0] < c.area[2] && c.area[1] < c.area[3]))
-        throw ConfigError(where(path, full, node) + ": expected xmin < xmax and ymin < ymax");
-    } else if (key == "max_vehicles") {
-      const int v = integer(path, full, node);
-      if (v < 0) throw ConfigError(where(path, full, node) + ": must be >= 0");
-      c.max_vehicles = static_cast<std::size_t>(v);
-    } else if (key == "outside") {
-      c.outside = text(path, full, node);
-      if (c.outside != "error" && c.outside != "drop")
-        throw ConfigError(where(path, full, node) + ": expected \"error\" or \"drop\"");
-    } else if (key == "cfr") {
-      c.cfr = text(path, full, node);
-      if (!c.cfr.empty()) {
-        try {
-          parse_ofdm_grid(c.cfr, 5.9e9);
-        } catch (const std::invalid_argument& e) {
-          throw ConfigError(where(path, full, node) + ": " + e.what());
-        }
-      }
-    } else if (key == "lod") c.lod = integer(path, full, node);
-    else if (key == "exclude_objects") c.exclude_objects = text(path, full, node);
-    else if (key == "d0_m") c.options.d0_m = non_negative(number(path, full, node));
-    else if (key == "coherence_time_s") c.options.coherence_time_s = non_negative(number(path, full, node));
-    else if (key == "cache_margin_m") c.options.cache_margin_m = non_negative(number(path, full, node));
-    else if (key == "cache") {
-      try {
-        c.options.cache = generators::parse_cache_mode(text(path, full, node));
-      } catch (const std::invalid_argument& e) {
-        throw ConfigError(where(path, full, node) + ": " + e.what());
-      }
-    } else if (key == "block_frames") {
-      const int v = integer(path, full, node);
-      if (v < 1) throw ConfigError(where(path, full, node) + ": must be >= 1");
-      c.options.block_frames = static_cast<std::uint32_t>(v);
-    } else {
-      throw ConfigError(where(path, full, node) + ": unknown key");
-    }
-  }
-  if (!(c.begin_s <= c.end_s)) throw ConfigError(path + ": key 'sweep.end_s': must not be before sweep.begin_s");
+  const ConfigFile file(path);
+  file.read(sweep_table(), c);
+  if (!(c.begin_s <= c.end_s)) file.fail("sweep", "end_s", "must not be before sweep.begin_s");
   return c;
 }
 

@@ -13,6 +13,7 @@
 
 #include "meshkit/errors.hpp"
 #include "meshkit/vehicle_classes.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 
@@ -20,6 +21,8 @@ namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+
+json TrafficSettings::to_json() const { return traffic_table().write(*this); }
 
 std::string find_program(const std::string& name, const char* env_override) {
   if (env_override) {
@@ -156,9 +159,9 @@ json run_traffic_stage(const TrafficArgs& args, const std::vector<std::string>& 
   commands.push_back(cmd);
   if (!fs::exists(dir / "fcd.xml.gz")) throw std::runtime_error("sumo wrote no FCD; see " + log);
 
-  json config = {{"seed", args.seed},       {"begin_s", args.begin_s},       {"end_s", args.end_s},
-                 {"step_length_s", args.step_length_s}, {"sumocfg", args.sumocfg},
-                 {"period_s", args.period_s}, {"fringe_factor", args.fringe_factor}, {"classes", args.classes}};
+  TrafficSettings effective;  // `raysweep traffic` has the [traffic] table's settings, from its options
+  effective.sumo = args;
+  const json config = effective.to_json();
   json record;
   record["fcd"] = "fcd.xml.gz";
   record["vtype_files"] = vtype_files;

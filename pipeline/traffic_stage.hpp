@@ -30,6 +30,14 @@ struct TrafficArgs {
   std::map<std::string, double> classes = {{"passenger", 8}, {"truck", 1}, {"bus", 1}};  // vClass -> weight
 };
 
+// The [traffic] table of a city file: SUMO's settings, or a finished FCD trace
+// taken as given. `sumo.net` and `sumo.out` come from [city] and the run.
+struct TrafficSettings {
+  std::string fcd;   // absolute; empty: run SUMO
+  TrafficArgs sumo;  // sumocfg (absolute), seed, time span, random-trip demand
+  nlohmann::json to_json() const;  // the effective table (config_tables.hpp)
+};
+
 // The path of a program on PATH (or `env_override` when set), or "" when absent.
 std::string find_program(const std::string& name, const char* env_override = nullptr);
 

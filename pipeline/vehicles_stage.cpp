@@ -1,7 +1,6 @@
 #include "pipeline/vehicles_stage.hpp"
 
 #include <spdlog/spdlog.h>
-#include <toml++/toml.h>
 
 #include <algorithm>
 #include <chrono>
@@ -16,19 +15,16 @@
 #include "meshkit/vehicle_classes.hpp"
 #include "meshkit/vehicle_lod.hpp"
 #include "meshkit/vehicle_parametric.hpp"
-#include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
-#include "pipeline/toml_fields.hpp"
 
 namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
 using namespace raysweep::meshkit;
-
-using namespace toml_fields;
 
 namespace {
 
@@ -45,119 +41,11 @@ std::string unit_names() {
 VehiclesConfig load_vehicles_config(const std::string& path) {
   VehiclesConfig cfg;
   if (path.empty()) return cfg;
-  load_scene_config(path);  // validates the file and its top-level sections
-  toml::table root = toml::parse_file(path);
-  const toml::table* v = root["vehicles"].as_table();
-  if (!v) return cfg;
-  for (auto&& [k, node] : *v) {
-    const std::string key(k.str()), full = "vehicles." + key;
-    if (key == "classes") {
-      const toml::array* a = node.as_array();
-      if (!a) throw ConfigError(where(path, full, node) + ": expected a list of class names");
-      for (auto&& c : *a) {
-        auto s = c.value<std::string>();
-        if (!s || !find_vehicle_class(*s)) throw ConfigError(where(path, full, c) + ": unknown vehicle class");
-        cfg.classes.push_back(*s);
-      }
-    } else if (key == "lod_ratios") {
-      const toml::array* a = node.as_array();
-      if (!a || a->empty()) throw ConfigError(where(path, full, node) + ": expected a list of ratios");
-      cfg.lod_ratios.clear();
-      for (auto&& r : *a) {
-        const double x = number(path, full, r);
-        if (!(x > 0 && x <= 1)) throw ConfigError(where(path, full, r) + ": ratios must be in (0, 1]");
-        cfg.lod_ratios.push_back(x);
-      }
-    } else if (key == "lod_tolerance_m") cfg.lod_tolerance_m = number(path, full, node);
-    else if (key == "lod_max_error_m") cfg.lod_max_error_m = number(path, full, node);
-    else if (key == "antenna_offset_m") cfg.antenna_offset_m = number(path, full, node);
-    else if (key == "scale_to_class") {
-      auto b = node.value<bool>();
-      if (!b) throw ConfigError(where(path, full, node) + ": expected true or false");
-      cfg.scale_to_class = *b;
-    } else if (key == "draco") {
-      auto b = node.value<bool>();
-      if (!b) throw ConfigError(where(path, full, node) + ": expected true or false");
-      cfg.draco = *b;
-    } else if (key == "draco_position_bits") cfg.draco_position_bits = static_cast<int>(number(path, full, node));
-    else if (key == "default_material") {
-      auto s = node.value<std::string>();
-      if (!s || !is_radio_material(*s)) throw ConfigError(where(path, full, node) + ": unknown radio material");
-      cfg.rules.default_material = *s;
-    } else if (key == "rules") {
-      // A rules list replaces the built-in table entirely: partial merges of
-      // ordered first-match rules would be impossible to reason about.
-      const toml::array* a = node.as_array();
-      if (!a) throw ConfigError(where(path, full, node) + ": expected [[vehicles.rules]] tables");
-      cfg.rules.rules.clear();
-      for (auto&& r : *a) {
-        const toml::table* t = r.as_table();
-        if (!t) throw ConfigError(where(path, full, r) + ": expected a table {field, pattern, material}");
-        SegmentationRule rule;
-        for (auto&& [rk, rv] : *t) {
-          const std::string name(rk.str());
-          auto s = rv.value<std::string>();
-          if (!s) throw ConfigError(where(path, full + "." + name, rv) + ": expected a string");
-          if (name == "field") rule.field = *s;
-          else if (name == "pattern") rule.pattern = *s;
-          else if (name == "material") rule.material = *s;
-          else throw ConfigError(where(path, full + "." + name, rv) + ": unknown key");
-        }
-        if (rule.field.empty()) rule.field = "any";
-        if (!is_radio_material(rule.material))
-          throw ConfigError(where(path, full, r) + ": unknown radio material '" + rule.material + "'");
-        cfg.rules.rules.push_back(rule);
-      }
-    } else if (key == "class") {
-      const toml::table* t = node.as_table();
-      if (!t) throw ConfigError(where(path, full, node) + ": expected [vehicles.class.<name>] tables");
-      for (auto&& [ck, cv] : *t) {
-        const toml::table* ct = cv.as_table();
-        const std::string cname(ck.str());
-        if (!ct) throw ConfigError(where(path, full + "." + cname, cv) + ": expected a table");
-        VehicleEntryConfig e;
-        for (auto&& [pk, pv] : *ct) {
-          const std::string pname(pk.str()), pfull = full + "." + cname + "." + pname;
-          if (pname == "length") e.dims.length = number(path, pfull, pv);
-          else if (pname == "width") e.dims.width = number(path, pfull, pv);
-          else if (pname == "height") e.dims.height = number(path, pfull, pv);
-          else if (pname == "antenna") {
-            const toml::array* a = pv.as_array();
-            if (!a || a->size() != 3) throw ConfigError(where(path, pfull, pv) + ": expected [x, y, z]");
-            e.antenna = Vec3{number(path, pfull, *a->get(0)), number(path, pfull, *a->get(1)),
-                             number(path, pfull, *a->get(2))};
-          } else if (pname == "model_unit") {
-            auto u = pv.value<std::string>();
-            if (!u || parse_model_unit(*u) <= 0)
-              throw ConfigError(where(path, pfull, pv) + ": expected a unit: " + unit_names());
-            e.model_unit = *u;
-          } else {
-            throw ConfigError(where(path, pfull, pv) + ": unknown key");
-          }
-        }
-        cfg.entries[cname] = e;
-      }
-    } else {
-      throw ConfigError(where(path, full, node) + ": unknown key");
-    }
-  }
+  ConfigFile(path).read(vehicles_table(), cfg);
   return cfg;
 }
 
-json VehiclesConfig::to_json() const {
-  json rules_j = json::array();
-  for (const auto& r : rules.rules) rules_j.push_back({{"field", r.field}, {"pattern", r.pattern}, {"material", r.material}});
-  json entries_j = json::object();
-  for (const auto& [name, e] : entries) {
-    entries_j[name] = dims_json(e.dims);
-    if (e.antenna) entries_j[name]["antenna"] = *e.antenna;
-    if (!e.model_unit.empty()) entries_j[name]["model_unit"] = e.model_unit;
-  }
-  return {{"classes", classes},        {"lod_ratios", lod_ratios},           {"lod_tolerance_m", lod_tolerance_m}, {"lod_max_error_m", lod_max_error_m},
-          {"antenna_offset_m", antenna_offset_m}, {"scale_to_class", scale_to_class}, {"draco", draco},
-          {"draco_position_bits", draco_position_bits}, {"rules", rules_j},
-          {"default_material", rules.default_material}, {"class", entries_j}};
-}
+json VehiclesConfig::to_json() const { return vehicles_table().write(*this); }
 
 BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, const std::string& model_file,
                            const VehiclesConfig& cfg) {

@@ -167,7 +167,7 @@ TEST(CliSinr, BadInputNamesTheFileAndWritesNothing) {
   write_text(dir / "notes.h5", "not HDF5\n");
   expect_fails(sinr_args(dir / "notes.h5", out, dir / "s.toml"), "notes.h5");
   write_text(dir / "typo.toml", "[sinr]\nseed = 1\nnr_fractoin = 0.5\n");
-  expect_fails(sinr_args(channels, out, dir / "typo.toml"), "sinr.nr_fractoin' (line 3)");
+  expect_fails(sinr_args(channels, out, dir / "typo.toml"), "typo.toml:3: sinr.nr_fractoin: unknown key (did you mean 'nr_fraction'?)");
   write_text(dir / "range.toml", "[sinr]\nnr_fraction = 1.5\n");
   expect_fails(sinr_args(channels, out, dir / "range.toml"), "nr_fraction");
   write_text(dir / "big.toml", "[sinr]\ncam_bytes = 2000\n");

@@ -124,7 +124,7 @@ TEST(RadioMap, BadSettingsExitTwoWithAClearMessage) {
     EXPECT_NE(r.output.find(needle), std::string::npos) << r.output;
     EXPECT_FALSE(fs::exists(dir / "m.vdb"));
   };
-  bad("[radiomap]\nvoxel_m = 0\nregion = \"all\"\n", "a,0,0,2", "voxel_m must be > 0");
+  bad("[radiomap]\nvoxel_m = 0\nregion = \"all\"\n", "a,0,0,2", "c.toml:2: radiomap.voxel_m: expected a finite number > 0, got 0");
   bad("[radiomap]\nz_min_m = 3\nz_max_m = 1\nregion = \"all\"\n", "a,0,0,2", "must not exceed radiomap.z_max_m");
   bad("[radiomap]\nregion = \"all\"\n", "a,7,7,2", "transmitter a at (7.000000, 7.000000, 2.000000) is inside a building");
   bad("[radiomap]\nregion = \"roads\"\n", "a,0,0,2", "radiomap.region");

@@ -1,0 +1,297 @@
+// The declared config schema (pipeline/config_tables.cpp): its errors per value
+// type, defaults, the recipes, docs/config.md and the provenance it feeds.
+#include <gtest/gtest.h>
+
+#include <nlohmann/json.hpp>
+
+#include <fstream>
+#include <functional>
+#include <regex>
+
+#include "pipeline/city_run.hpp"
+#include "pipeline/config.hpp"
+#include "pipeline/config_tables.hpp"
+#include "pipeline/ns3_stage.hpp"
+#include "pipeline/radiomap_stage.hpp"
+#include "pipeline/sinr_stage.hpp"
+#include "pipeline/sweep_stage.hpp"
+#include "pipeline/trace_config.hpp"
+#include "pipeline/traffic_stage.hpp"
+#include "pipeline/vehicles_stage.hpp"
+#include "test_util.hpp"
+
+using namespace raysweep::pipeline;
+using namespace raysweep::test;
+using json = nlohmann::json;
+
+namespace {
+
+// The ConfigError that reading `toml` gives, "" when it reads fine.
+std::string error_of(const std::string& toml) {
+  const fs::path dir = scratch_dir("cfg");
+  write_text(dir / "c.toml", toml);
+  try {
+    effective_config((dir / "c.toml").string());
+  } catch (const ConfigError& e) {
+    const std::string msg = e.what();
+    const std::string prefix = (dir / "c.toml").string();
+    // Errors start with the file; the rest is compared whole below.
+    EXPECT_EQ(msg.rfind(prefix, 0), 0u) << msg;
+    return msg.substr(prefix.size());
+  }
+  return "";
+}
+
+}  // namespace
+
+TEST(ConfigSchema, IntegerErrors) {
+  EXPECT_EQ(error_of("[tracer]\nrays_per_source = -3\n"),
+            ":2: tracer.rays_per_source: expected an integer >= 1, got -3");
+  EXPECT_EQ(error_of("[tracer]\n\nmax_depth = 17\n"), ":3: tracer.max_depth: expected an integer in [0, 16], got 17");
+  EXPECT_EQ(error_of("[tracer]\nmax_depth = \"3\"\n"), ":2: tracer.max_depth: expected an integer in [0, 16], got \"3\"");
+  EXPECT_EQ(error_of("[tracer]\nmax_depth = 2.5\n"), ":2: tracer.max_depth: expected an integer in [0, 16], got 2.5");
+  EXPECT_EQ(error_of("[tracer]\nmax_depth = true\n"), ":2: tracer.max_depth: expected an integer in [0, 16], got true");
+  // Unsigned fields reject negatives and values beyond their type, never wrap.
+  EXPECT_EQ(error_of("[sweep]\nblock_frames = 4294967296\n"),
+            ":2: sweep.block_frames: expected an integer >= 1, got 4294967296");
+  EXPECT_EQ(error_of("[sinr]\nseed = -1\n"), ":2: sinr.seed: expected an integer >= 0, got -1");
+  // An integral float is an integer, as TOML readers commonly take it; a huge
+  // one is no integer (and no undefined cast on the way).
+  EXPECT_EQ(error_of("[tracer]\nmax_depth = 2.0\n"), "");
+  EXPECT_EQ(error_of("[sinr]\nseed = 1e30\n"), ":2: sinr.seed: expected an integer >= 0, got 1e+30");
+  EXPECT_EQ(error_of("[sinr]\nseed = -inf\n"), ":2: sinr.seed: expected an integer >= 0, got -inf");
+}
+
+TEST(ConfigSchema, NumberErrors) {
+  EXPECT_EQ(error_of("[radio]\nfrequency_hz = \"5.9 GHz\"\n"),
+            ":2: radio.frequency_hz: expected a finite number > 0, got \"5.9 GHz\"");
+  EXPECT_EQ(error_of("[radio]\nfrequency_hz = 0\n"), ":2: radio.frequency_hz: expected a finite number > 0, got 0");
+  EXPECT_EQ(error_of("[radio]\ntx_power_dbm = nan\n"), ":2: radio.tx_power_dbm: expected a finite number, got nan");
+  EXPECT_EQ(error_of("[radio]\ntx_power_dbm = inf\n"), ":2: radio.tx_power_dbm: expected a finite number, got inf");
+  EXPECT_EQ(error_of("[sinr]\nnr_fraction = 1.5\n"), ":2: sinr.nr_fraction: expected a finite number in [0, 1], got 1.5");
+  EXPECT_EQ(error_of("[vehicles]\nlod_ratios = [1.0, 0]\n"),
+            ":2: vehicles.lod_ratios: expected a finite number in (0, 1], got 0");
+  EXPECT_EQ(error_of("[radio]\nfrequency_hz = 6\n"), "");  // integers are numbers
+}
+
+TEST(ConfigSchema, BooleanAndStringErrors) {
+  EXPECT_EQ(error_of("[scene]\nground = 1\n"), ":2: scene.ground: expected true or false, got 1");
+  EXPECT_EQ(error_of("[scene]\nground = \"yes\"\n"), ":2: scene.ground: expected true or false, got \"yes\"");
+  EXPECT_EQ(error_of("[sweep]\nexclude_objects = 3\n"), ":2: sweep.exclude_objects: expected a string, got 3");
+  EXPECT_EQ(error_of("[city]\nname = [\"a\"]\nnet = \"n.xml\"\n"), ":2: city.name: expected a string, got an array of 1 value");
+}
+
+TEST(ConfigSchema, EnumErrorsSuggestTheClosestValue) {
+  EXPECT_EQ(error_of("[tracer]\ncandidates = \"imag\"\n"),
+            ":2: tracer.candidates: expected \"image\", \"sbr\" or \"exhaustive\", got \"imag\" (did you mean \"image\"?)");
+  EXPECT_EQ(error_of("[tracer]\ndiffuse_integration = \"voxels\"\n"),
+            ":2: tracer.diffuse_integration: expected \"tiles\" or \"rays\", got \"voxels\"");
+  EXPECT_EQ(error_of("[sweep]\noutside = 1\n"), ":2: sweep.outside: expected \"error\" or \"drop\", got 1");
+  EXPECT_EQ(error_of("[sinr]\nrat_by_vtype = { bus = \"lte\" }\n"),
+            ":2: sinr.rat_by_vtype.bus: expected \"80211p\", \"nrv2x\" or \"none\", got \"lte\"");
+  // Names checked by a parser: materials, classes, models, OFDM grids.
+  EXPECT_EQ(error_of("[scene]\nground_material = \"concrte\"\n"),
+            ":2: scene.ground_material: unknown ITU-R P.2040 material 'concrte' (did you mean 'concrete'?)");
+  EXPECT_EQ(error_of("[vehicles]\nclasses = [\"bus\", \"buss\"]\n"),
+            ":2: vehicles.classes: unknown vehicle class 'buss' (did you mean 'bus'?)");
+  EXPECT_NE(error_of("[sinr]\nmodels = [\"winner\"]\n").find(":2: sinr.models: unknown channel model 'winner'"),
+            std::string::npos);
+  EXPECT_NE(error_of("[sweep]\ncfr = \"nr:9:1\"\n").find(":2: sweep.cfr: "), std::string::npos);
+}
+
+TEST(ConfigSchema, ArrayMapAndTableErrors) {
+  EXPECT_EQ(error_of("[sweep]\nids = [\"a\", 2]\n"), ":2: sweep.ids: expected a string, got 2");
+  EXPECT_EQ(error_of("[sweep]\nids = \"a\"\n"), ":2: sweep.ids: expected an array of strings, got \"a\"");
+  EXPECT_EQ(error_of("[sweep]\narea = [0, 0, 10]\n"),
+            ":2: sweep.area: expected an array of 4 numbers, got an array of 3 values");
+  EXPECT_EQ(error_of("[sweep]\narea = [10, 0, 0, 10]\n"),
+            ":2: sweep.area: expected [xmin, ymin, xmax, ymax] with xmin < xmax and ymin < ymax, got an array of 4 values");
+  EXPECT_EQ(error_of("[sinr]\nmodels = []\n"),
+            ":2: sinr.models: expected an array of strings (at least 1), got an empty array");
+  EXPECT_EQ(error_of("[sinr]\nwifi_bler = [[0, 1], [5]]\n"),
+            ":2: sinr.wifi_bler: expected an array of 2 numbers, got an array of 1 value");
+  EXPECT_EQ(error_of("[traffic]\nclasses = { bus = \"many\" }\n"),
+            ":2: traffic.classes.bus: expected a finite number >= 0, got \"many\"");
+  EXPECT_EQ(error_of("[scene]\nmaterial_map = 3\n"),
+            ":2: scene.material_map: expected a table of OSM value = string, got 3");
+  EXPECT_EQ(error_of("[vehicles.class.bus]\nlenght = 12\n"),
+            ":2: vehicles.class.bus.lenght: unknown key (did you mean 'length'?)");
+  EXPECT_EQ(error_of("[vehicles.class.bus]\nantenna = [0, 1]\n"),
+            ":2: vehicles.class.bus.antenna: expected an array of 3 numbers, got an array of 2 values");
+  EXPECT_EQ(error_of("[[vehicles.rules]]\npattern = \"x\"\n"), ":1: vehicles.rules: missing key 'material'");
+  EXPECT_EQ(error_of("[[vehicles.rules]]\nfield = \"name\"\nmaterial = \"glass\"\n"),
+            ":2: vehicles.rules.field: expected \"part\", \"material\" or \"any\", got \"name\"");
+  EXPECT_EQ(error_of("[materials.concrete]\nthickness_m = \"thick\"\n"),
+            ":2: materials.concrete.thickness_m: expected a finite number >= 0, got \"thick\"");
+  EXPECT_EQ(error_of("[materials.concrte]\neps_r = 4\n"),
+            ":1: materials.concrte: unknown material 'concrte' (did you mean 'concrete'?)");
+  EXPECT_EQ(error_of("[city]\nosm = \"a.osm\"\n"), ":1: city: missing key 'name'");
+  EXPECT_EQ(error_of("[city]\nname = \"\"\nnet = \"n.xml\"\n"), ":2: city.name: expected a non-empty string, got \"\"");
+}
+
+TEST(ConfigSchema, UnknownKeysAndTablesSuggestTheClosestName) {
+  EXPECT_EQ(error_of("[sinr]\nseed = 1\nnr_fractoin = 0.5\n"),
+            ":3: sinr.nr_fractoin: unknown key (did you mean 'nr_fraction'?)");
+  EXPECT_EQ(error_of("[tracer]\nmax_dept = 3\n"), ":2: tracer.max_dept: unknown key (did you mean 'max_depth'?)");
+  EXPECT_EQ(error_of("[tracer]\ncompletely_else = 3\n"), ":2: tracer.completely_else: unknown key");
+  EXPECT_EQ(error_of("[radiomap]\nvoxel = 1\n"), ":2: radiomap.voxel: unknown key (did you mean 'voxel_m'?)");
+  EXPECT_EQ(error_of("[scnee]\n"), ":1: unknown table [scnee] (did you mean [scene]?)");
+  EXPECT_EQ(error_of("[report]\n"), ":1: unknown table [report]");
+  EXPECT_EQ(error_of("[sweep.extra]\n"), ":1: sweep.extra: unknown key");
+  EXPECT_EQ(error_of("sweep = 3\n"), ":1: sweep: expected a table [sweep], got 3");
+  EXPECT_EQ(error_of("[scene\n"), ":1: Error while parsing table header: expected ']', saw '\\n'");
+}
+
+TEST(ConfigSchema, EveryTableIsCheckedByEveryLoader) {
+  // A typo in [radiomap] fails `raysweep scene` too, before any work is done.
+  const fs::path dir = scratch_dir("cfg");
+  write_text(dir / "c.toml", "[scene]\nground = true\n[radiomap]\nvoxl_m = 1\n");
+  try {
+    load_scene_config((dir / "c.toml").string());
+    FAIL() << "no error";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(":4: radiomap.voxl_m: unknown key (did you mean 'voxel_m'?)"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(ConfigSchema, ErrorsAcrossKeysNameTheLineToo) {
+  const fs::path dir = scratch_dir("cfg");
+  const std::string c = (dir / "c.toml").string();
+  auto error = [&](const std::function<void()>& load) {
+    try {
+      load();
+    } catch (const ConfigError& e) {
+      return std::string(e.what()).substr(c.size());
+    }
+    return std::string();
+  };
+  write_text(c, "[sweep]\nbegin_s = 10\nend_s = 5\n");
+  EXPECT_EQ(error([&] { load_sweep_config(c); }), ":3: sweep.end_s: must not be before sweep.begin_s");
+  write_text(dir / "n.xml", "");
+  write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\nosm = \"n.xml\"\nmitsuba = \"n.xml\"\n");
+  EXPECT_EQ(error([&] { load_city_config(c); }), ":5: city.mitsuba: give exactly one of city.osm and city.mitsuba");
+  write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\n");
+  EXPECT_EQ(error([&] { load_city_config(c); }), ":1: city.osm: give exactly one of city.osm and city.mitsuba");
+}
+
+TEST(ConfigSchema, DefaultsAreFilledIn) {
+  const fs::path dir = scratch_dir("cfg");
+  write_text(dir / "c.toml", "[tracer]\nmax_depth = 2\n[materials.glass]\nthickness_m = 0.004\n[scene]\n");
+  const json eff = effective_config((dir / "c.toml").string());
+  const json defaults = effective_config("");
+  // Every table and every declared key, given or not.
+  for (const auto* t : config_tables()) {
+    ASSERT_TRUE(eff.contains(t->name())) << t->name();
+    if (t->name() == "materials") continue;  // its keys are names
+    for (const auto& k : t->docs()) EXPECT_TRUE(eff[t->name()].contains(k.key)) << t->name() << "." << k.key;
+  }
+  EXPECT_EQ(eff["tracer"]["max_depth"], 2);
+  EXPECT_EQ(eff["tracer"]["rays_per_source"], 4096);
+  EXPECT_EQ(eff["scene"], defaults["scene"]);
+  EXPECT_EQ(eff["materials"]["glass"]["thickness_m"], 0.004);
+  EXPECT_TRUE(eff["materials"]["glass"]["eps_r"].is_null());  // the built-in value at the carrier
+  EXPECT_EQ(defaults["sweep"]["block_frames"], 50);
+  EXPECT_EQ(defaults["sinr"]["models"], json::array({"ray"}));
+  // The loaders' structs hold the same values.
+  const TraceSettings s = load_trace_config((dir / "c.toml").string());
+  EXPECT_EQ(s.tracer.max_depth, 2);
+  EXPECT_EQ(s.tracer.rays_per_source, 4096);
+  ASSERT_TRUE(s.tracer.materials.at("glass").thickness_m.has_value());
+  EXPECT_EQ(*s.tracer.materials.at("glass").thickness_m, 0.004);
+}
+
+TEST(ConfigSchema, EffectiveConfigIsWhatTheLoadersRead) {
+  // What each stage records in its provenance (to_json) is the schema's
+  // writing of the struct it loaded: the same tables, keys and values as
+  // `raysweep config` prints.
+  const std::string demo = (source_dir() / "datasets/demo/city.toml").string();
+  const json eff = effective_config(demo);
+  EXPECT_EQ(load_scene_config(demo).to_json(), eff["scene"]);
+  EXPECT_EQ(load_vehicles_config(demo).to_json(), eff["vehicles"]);
+  EXPECT_EQ(load_sweep_config(demo).to_json(), eff["sweep"]);
+  const json trace = load_trace_config(demo).to_json();
+  for (const char* t : {"radio", "tracer", "materials"}) EXPECT_EQ(trace[t], eff[t]) << t;
+  EXPECT_EQ(load_sinr_settings(demo).to_json(), eff["sinr"]);
+  EXPECT_EQ(load_ns3_settings(demo).to_json(), eff["ns3"]);
+  EXPECT_EQ(load_radiomap_settings(demo).to_json(), eff["radiomap"]);
+  // The recipe's values arrive in the structs.
+  EXPECT_EQ(load_sweep_config(demo).begin_s, 60);
+  EXPECT_EQ(load_sweep_config(demo).options.block_frames, 50u);
+  EXPECT_EQ(load_trace_config(demo).radio.antenna.pattern, raysweep::tracer::AntennaPattern::short_dipole);
+  EXPECT_EQ(load_sinr_settings(demo).models.size(), 4u);
+  EXPECT_EQ(load_radiomap_settings(demo).tx.at(0).id, "rsu1");
+  EXPECT_EQ(load_city_config(demo).name, "demo");
+  EXPECT_EQ(eff["traffic"]["seed"], 42);
+  EXPECT_EQ(eff["traffic"]["classes"]["passenger"], 8.0);
+}
+
+TEST(ConfigSchema, ProvenanceRecordsTheEffectiveConfig) {
+  const fs::path dir = scratch_dir("cfg");
+  write_text(dir / "v.toml",
+             "[vehicles]\nclasses = [\"bicycle\"]\nlod_ratios = [1.0, 0.5]\n[vehicles.class.bicycle]\nlength = 1.8\n");
+  const auto r = run_raysweep("-q vehicles --no-preview --config " + (dir / "v.toml").string() + " --out " +
+                              (dir / "lib").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json manifest = json::parse(read_text(dir / "lib/manifest.json"));
+  const json eff = effective_config((dir / "v.toml").string());
+  EXPECT_EQ(manifest["provenance"]["config"], eff["vehicles"]);
+  EXPECT_EQ(manifest["provenance"]["config"]["class"]["bicycle"]["length"], 1.8);
+  // `raysweep config FILE` prints the same, `raysweep config` with a bad file exits 2.
+  const auto c = run_raysweep("config " + (dir / "v.toml").string());
+  ASSERT_EQ(c.exit_code, 0) << c.output;
+  EXPECT_EQ(json::parse(c.output)["vehicles"], eff["vehicles"]);
+  write_text(dir / "bad.toml", "[vehicles]\nclases = []\n");
+  const auto b = run_raysweep("config " + (dir / "bad.toml").string());
+  EXPECT_EQ(b.exit_code, 2);
+  EXPECT_NE(b.output.find("bad.toml:2: vehicles.clases: unknown key (did you mean 'classes'?)"), std::string::npos)
+      << b.output;
+}
+
+TEST(ConfigSchema, EveryRecipeParses) {
+  std::vector<fs::path> files = {source_dir() / "docs/ns3_compare.toml"};
+  for (const auto& e : fs::directory_iterator(source_dir() / "datasets"))
+    if (fs::exists(e.path() / "city.toml")) files.push_back(e.path() / "city.toml");
+  ASSERT_GE(files.size(), 4u);
+  for (const auto& f : files) {
+    SCOPED_TRACE(f.string());
+    const json eff = effective_config(f.string());
+    EXPECT_EQ(eff.size(), config_tables().size());
+    EXPECT_NO_THROW(load_scene_config(f.string()));
+    EXPECT_NO_THROW(load_vehicles_config(f.string()));
+    EXPECT_NO_THROW(load_trace_config(f.string()));
+    EXPECT_NO_THROW(load_sweep_config(f.string()));
+    EXPECT_NO_THROW(load_sinr_settings(f.string()));
+    EXPECT_NO_THROW(load_ns3_settings(f.string()));
+    EXPECT_NO_THROW(load_radiomap_settings(f.string()));
+  }
+}
+
+TEST(ConfigSchema, DocsAreGeneratedFromTheSchema) {
+  // docs/config.md is `raysweep config --docs`; regenerate it when this fails.
+  EXPECT_EQ(read_text(source_dir() / "docs/config.md"), config_docs())
+      << "docs/config.md is stale: run ./build/raysweep config --docs > docs/config.md";
+  const auto r = run_command(std::string(RAYSWEEP_BINARY) + " config --docs 2>/dev/null");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_EQ(r.output, config_docs());
+  // Every table and key has a section or a row.
+  for (const auto* t : config_tables()) {
+    EXPECT_NE(config_docs().find("`[" + t->name() + "]`"), std::string::npos) << t->name();
+    for (const auto& k : t->docs()) {
+      EXPECT_NE(config_docs().find("| `" + k.key + "` |"), std::string::npos) << t->name() << "." << k.key;
+      EXPECT_FALSE(k.help.empty()) << t->name() << "." << k.key;
+    }
+  }
+}
+
+TEST(ConfigSchema, NoStageReadsTomlByHand) {
+  // Only the schema touches toml++: a stage reading a key itself would
+  // bypass the checks, the docs and the provenance.
+  const std::regex toml_use(R"(toml::|toml\+\+)");
+  for (const auto& e : fs::directory_iterator(source_dir() / "pipeline")) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("config_schema.", 0) == 0 || name.rfind("config_tables.", 0) == 0) continue;
+    if (e.path().extension() != ".cpp" && e.path().extension() != ".hpp") continue;
+    EXPECT_FALSE(std::regex_search(read_text(e.path()), toml_use)) << name << " uses toml++ directly";
+  }
+}
