@@ -380,6 +380,11 @@ const Table<TraceSettings>& tracer_table() {
           "tiles: largest tile over its distance");
     t.key("diffuse_shadow_ratio", number(at_least(0)), FIELD(tracer.diffuse_shadow_ratio), "",
           "tiles: shadow edges refined to this ratio of the distance (0: to diffuse_tile_m)");
+    t.key("diffuse_both_ends", boolean(), FIELD(tracer.diffuse_both_ends), "",
+          "rays: both ends' rays gather (first order weighted by the balance heuristic; scattering before "
+          "reflections from the end that reaches it); false: the lower end's rays alone");
+    t.key("vehicle_multi_bounce", boolean(), FIELD(tracer.vehicle_multi_bounce), "",
+          "image search: two and three reflections on one vehicle from a per-model table of multi-bounce sequences");
     t.key("diffraction", boolean(), FIELD(tracer.diffraction), "", "first-order UTD edge diffraction on the static scene");
     t.key("vehicle_diffraction", boolean(), FIELD(tracer.vehicle_diffraction), "",
           "vehicles in the first Fresnel zone: P.526 knife-edge loss on the direct path");
