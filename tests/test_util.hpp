@@ -18,8 +18,11 @@ namespace fs = std::filesystem;
 
 inline fs::path scratch_dir(const std::string& name) {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+  // The process id keeps concurrent runs of the suite (several checkouts,
+  // CI) out of each other's folders.
   fs::path p = fs::temp_directory_path() / "raysweep-tests" /
-               (std::string(info ? info->test_suite_name() : "t") + "." + (info ? info->name() : "x") + "." + name);
+               (std::string(info ? info->test_suite_name() : "t") + "." + (info ? info->name() : "x") + "." + name +
+                "." + std::to_string(::getpid()));
   fs::remove_all(p);
   fs::create_directories(p);
   return p;
