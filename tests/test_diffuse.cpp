@@ -153,6 +153,27 @@ struct PlateIntegral {
   }
 };
 
+// The radar integral of a fully rough (S = 1) Lambertian plate of half side
+// 2 m between tx and rx, and the override that makes a material so
+// (K_x = 1/2: the received power is G_r / 2 times |E_refl|^2).
+PlateIntegral lambertian_plate(const Vec3& tx, const Vec3& rx, const tracer::RadioMaterial* material) {
+  PlateIntegral ref;
+  ref.h = 2;
+  ref.tx = tx;
+  ref.rx = rx;
+  ref.s = 1;
+  ref.material = material;
+  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  return ref;
+}
+tracer::MaterialOverride lambertian_override() {
+  tracer::MaterialOverride mo;
+  mo.scattering_coefficient = 1.0;
+  mo.xpd = 0.5;
+  mo.lobe = tracer::ScatteringLobe::lambertian;
+  return mo;
+}
+
 const char* integration_name(tracer::DiffuseIntegration how) {
   return how == tracer::DiffuseIntegration::tiles ? "tiles" : "rays";
 }
@@ -318,13 +339,7 @@ TEST(Diffuse, LambertianPlateMatchesRadarEquation) {
     EXPECT_NEAR(std::abs(r.te), 1.0, 1e-3);
     EXPECT_NEAR(std::abs(r.tm), 1.0, 1e-3);
   }
-  PlateIntegral ref;
-  ref.h = 2;
-  ref.tx = tx;
-  ref.rx = rx;
-  ref.s = 1;
-  ref.material = &metal;
-  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  PlateIntegral ref = lambertian_plate(tx, rx, &metal);
   const double expect = ref();
   const int rays = 1 << 18;
   const double lattice = plate_lattice_sum(ref, rays);
@@ -333,11 +348,7 @@ TEST(Diffuse, LambertianPlateMatchesRadarEquation) {
   ASSERT_NEAR(lattice / expect, 1.0, 0.01) << "the lattice discretisation alone should be within 1 %";
 
   auto cfg = diffuse_config(rays);
-  tracer::MaterialOverride mo;
-  mo.scattering_coefficient = 1.0;
-  mo.xpd = 0.5;
-  mo.lobe = tracer::ScatteringLobe::lambertian;
-  cfg.materials["metal"] = mo;
+  cfg.materials["metal"] = lambertian_override();
   // Tiles (the default): the midpoint rule on tiles <= 0.25 x distance;
   // rays: the lattice's discretisation (above) plus the reception binning.
   for (auto how : {tracer::DiffuseIntegration::rays, tracer::DiffuseIntegration::tiles}) {
@@ -387,23 +398,13 @@ TEST(Diffuse, LambertianConcretePlateMatchesRadarEquation) {
   tracer::TraceScene scene(scene_def);
   const Vec3 tx{-3, 0, 5}, rx{4, 1, 6};
   const auto concrete = tracer::radio_material("concrete", kF);
-  PlateIntegral ref;
-  ref.h = 2;
-  ref.tx = tx;
-  ref.rx = rx;
-  ref.s = 1;
-  ref.material = &concrete;
-  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
+  PlateIntegral ref = lambertian_plate(tx, rx, &concrete);
   const double expect = ref();
   const int rays = 1 << 18;
   const double lattice = plate_lattice_sum(ref, rays);
   ASSERT_NEAR(lattice / expect, 1.0, 0.01);
   auto cfg = diffuse_config(rays);
-  tracer::MaterialOverride mo;
-  mo.scattering_coefficient = 1.0;
-  mo.xpd = 0.5;
-  mo.lobe = tracer::ScatteringLobe::lambertian;
-  cfg.materials["concrete"] = mo;
+  cfg.materials["concrete"] = lambertian_override();
   std::printf("lambertian concrete plate: radar integral %.6e (one way), %.6e (mean of both ways), lattice %.6e\n",
               expect, ref.symmetric(), lattice);
   // |Gamma| of concrete depends on the angle: the two ways differ.
@@ -429,21 +430,11 @@ TEST(Diffuse, BothEndsEstimatorSamplesThePlateFromTheNearEnd) {
   tracer::TraceScene scene(scene_def);
   const Vec3 tx{-30, 5, 20}, rx{0.5, 0.3, 0.6};
   const auto metal = tracer::radio_material("metal", kF);
-  PlateIntegral ref;
-  ref.h = 2;
-  ref.tx = tx;
-  ref.rx = rx;
-  ref.s = 1;
-  ref.material = &metal;
+  PlateIntegral ref = lambertian_plate(tx, rx, &metal);
   ref.panels = 40;  // the receiver is close: a fine rule
-  ref.pattern = [](const Vec3&, const Vec3& k_s, double) { return std::max(0.0, k_s[2]) / kPi; };
   const double want = ref();
   auto cfg = diffuse_config(4096);
-  tracer::MaterialOverride mo;
-  mo.scattering_coefficient = 1.0;
-  mo.xpd = 0.5;
-  mo.lobe = tracer::ScatteringLobe::lambertian;
-  cfg.materials["metal"] = mo;
+  cfg.materials["metal"] = lambertian_override();
   const auto traced = [&](bool both, bool reversed) {
     cfg.diffuse_both_ends = both;
     std::vector<tracer::Node> nodes{node("tx", tx), node("rx", rx)};
@@ -479,11 +470,7 @@ TEST(Diffuse, ScatteringBeforeAndAfterAReflectionBothCount) {
   cfg.rays_per_source = 1 << 16;
   cfg.path_threshold_db = 0;
   cfg.diffraction = false;
-  tracer::MaterialOverride mo;
-  mo.scattering_coefficient = 1.0;
-  mo.xpd = 0.5;
-  mo.lobe = tracer::ScatteringLobe::lambertian;
-  cfg.materials["metal"] = mo;
+  cfg.materials["metal"] = lambertian_override();
   const auto a = node("a", {-15, 1, 6}), b = node("b", {3, -1, 1});
   const auto diffuse = [&](bool both, bool reversed) {
     cfg.diffuse_both_ends = both;
@@ -738,11 +725,7 @@ TEST(DiffuseTiles, ShadowedPlateMatchesRadarEquationOverTheLitPart) {
   const double expect = ref();
   EXPECT_LT(expect, 0.9 * full) << "the box must shadow a real part of the plate";
   auto cfg = diffuse_config(1024);
-  tracer::MaterialOverride mo;
-  mo.scattering_coefficient = 1.0;
-  mo.xpd = 0.5;
-  mo.lobe = tracer::ScatteringLobe::lambertian;
-  cfg.materials["metal"] = mo;
+  cfg.materials["metal"] = lambertian_override();
   cfg.specular = false;
   cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
   // The bar's faces scatter too (metal, S = 1): keep the plate's paths only.

@@ -52,9 +52,10 @@ RTCRayHit make_ray(const Vec3& o, const Vec3& dir, double tnear, double tfar) {
 
 namespace {
 
-// Octahedral map of unit directions onto a kCells x kCells grid.
+// Octahedral map of unit directions onto a cells x cells grid (the normal
+// index: kCells).
 constexpr int kCells = 32;
-std::pair<int, int> octa_cell(const Vec3& d) {
+std::pair<int, int> octa_cell(const Vec3& d, int cells = kCells) {
   const double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
   double u = d[0] / l1, v = d[1] / l1;
   if (d[2] < 0) {
@@ -62,8 +63,8 @@ std::pair<int, int> octa_cell(const Vec3& d) {
     u = uu;
     v = vv;
   }
-  const int i = std::clamp(static_cast<int>((u + 1) / 2 * kCells), 0, kCells - 1);
-  const int j = std::clamp(static_cast<int>((v + 1) / 2 * kCells), 0, kCells - 1);
+  const int i = std::clamp(static_cast<int>((u + 1) / 2 * cells), 0, cells - 1);
+  const int j = std::clamp(static_cast<int>((v + 1) / 2 * cells), 0, cells - 1);
   return {i, j};
 }
 Vec3 octa_dir(double u, double v) {  // u, v in [-1, 1]
@@ -834,17 +835,6 @@ constexpr int kBounceCells = 16;
 // centre direction) and the query radii the table is unioned for.
 constexpr double kBounceCellRadius = 0.2;
 constexpr double kBounceLevels[] = {0.2, 0.4, 0.8};
-std::pair<int, int> bounce_cell(const Vec3& d) {
-  const double l1 = std::fabs(d[0]) + std::fabs(d[1]) + std::fabs(d[2]);
-  double u = d[0] / l1, v = d[1] / l1;
-  if (d[2] < 0) {
-    const double uu = (1 - std::fabs(v)) * (u >= 0 ? 1 : -1), vv = (1 - std::fabs(u)) * (v >= 0 ? 1 : -1);
-    u = uu;
-    v = vv;
-  }
-  return {std::clamp(static_cast<int>((u + 1) / 2 * kBounceCells), 0, kBounceCells - 1),
-          std::clamp(static_cast<int>((v + 1) / 2 * kBounceCells), 0, kBounceCells - 1)};
-}
 
 // Plane waves from every direction cell (2 x 2 directions inside each) as
 // bundles of parallel rays over the model's bounding disc (41 x 41 grid),
@@ -960,7 +950,7 @@ TraceScene::BounceQuery TraceScene::vehicle_bounce_sequences(std::size_t v, cons
   while (level < std::size(kBounceLevels) && kBounceLevels[level] < spread) ++level;
   if (level == std::size(kBounceLevels)) return {&s.bounce_seq, &s.bounce_all};
   const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
-  const auto [i, j] = bounce_cell(Vec3{c * dir[0] + sn * dir[1], -sn * dir[0] + c * dir[1], dir[2]});
+  const auto [i, j] = octa_cell(Vec3{c * dir[0] + sn * dir[1], -sn * dir[0] + c * dir[1], dir[2]}, kBounceCells);
   return {&s.bounce_seq, &s.bounce_near[level * kBounceCells * kBounceCells + i * kBounceCells + j]};
 }
 
