@@ -1103,7 +1103,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       lap(tm.diffuse);
     }
     if (ray_diffuse) {
-      for (const auto& [dk, acc] : diffuse[p]) {
+      for (const auto& entry : diffuse[p]) {
+        const DiffuseAcc& acc = entry.second;  // not a structured binding: the lambda below uses it (clang 14)
         if (!(acc.power > 0)) continue;
         Path path = diffuse_record(acc.power, acc.tau, acc.departure, acc.arrival, acc.doppler, lambda);
         const double w = 1.0 / acc.power;
