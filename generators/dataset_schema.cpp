@@ -143,7 +143,7 @@ class Validator {
     for (const auto& g : schema_.at("groups"))
       for (const auto& d : g.at("datasets")) guarded(path_of(g, d), [&] { check_values(g, d); });
     rules();
-    for (const auto& [p, ds] : good_) guarded(p, [&] { check_readable(p, ds.get()); });
+    for (const auto& entry : good_) guarded(entry.first, [&] { check_readable(entry.first, entry.second.get()); });
   }
 
  protected:

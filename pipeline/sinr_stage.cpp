@@ -134,8 +134,9 @@ SinrSettings load_sinr_settings(const std::string& path) {
   if (!t) return s;
   s.present = true;
   auto& c = s.config;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "sinr." + key;
+  for (auto&& entry : *t) {  // no structured binding: clang < 16 cannot capture one in the lambdas
+    const toml::node& node = entry.second;
+    const std::string key(entry.first.str()), full = "sinr." + key;
     auto num = [&] { return number(path, full, node); };
     auto positive = [&] {
       const double v = num();

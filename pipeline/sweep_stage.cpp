@@ -74,8 +74,9 @@ SweepConfig load_sweep_config(const std::string& path) {
   const toml::table root = toml::parse_file(path);
   const toml::table* t = root["sweep"].as_table();
   if (!t) return c;
-  for (auto&& [k, node] : *t) {
-    const std::string key(k.str()), full = "sweep." + key;
+  for (auto&& entry : *t) {  // no structured binding: clang < 16 cannot capture one in the lambdas
+    const toml::node& node = entry.second;
+    const std::string key(entry.first.str()), full = "sweep." + key;
     auto non_negative = [&](double v) {
       if (!(v >= 0)) throw ConfigError(where(path, full, node) + ": must be >= 0");
       return v;
