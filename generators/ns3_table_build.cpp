@@ -45,6 +45,11 @@ class CfrReader {
       subcarriers_ = hdf5::read_num_attr<std::uint32_t>(group_.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
       spacing_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
       carrier_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "carrier_hz", H5T_NATIVE_DOUBLE);
+      // The band centres derive from these (the table writer needs them increasing).
+      if (!(std::isfinite(spacing_hz_) && spacing_hz_ > 0))
+        hdf5::read_fail("/cfr attribute subcarrier_spacing_hz", "is not a positive number");
+      if (!(std::isfinite(carrier_hz_) && carrier_hz_ > 0))
+        hdf5::read_fail("/cfr attribute carrier_hz", "is not a positive number");
       h_ = hdf5::Handle(H5Dopen2(group_.get(), "h", H5P_DEFAULT), H5Dclose);
       if (!h_.valid()) hdf5::read_fail("/cfr/h", "cannot open dataset");
       const auto dims = hdf5::dataset_dims(h_.get(), "/cfr/h");

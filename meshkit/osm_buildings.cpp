@@ -3,6 +3,7 @@
 #include <osmium/io/any_input.hpp>
 #include <osmium/osm.hpp>
 #include <osmium/visitor.hpp>
+#include <protozero/exception.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -165,6 +166,10 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
   } catch (const std::runtime_error& e) {
     // libosmium reports truncated compressed input and PBF errors this way.
     throw InputError(path, "", std::string("cannot read OSM file: ") + e.what());
+  } catch (const protozero::exception& e) {
+    // A PBF block whose protobuf encoding ends early or is malformed: protozero's
+    // exceptions derive from std::exception only (found by tests/fuzz/fuzz_osm_pbf).
+    throw InputError(path, "", std::string("corrupt OSM PBF data: ") + e.what());
   }
   if (out.nodes > 0 && std::isfinite(min_lon)) {
     out.min_lon = min_lon;

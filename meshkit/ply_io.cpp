@@ -148,7 +148,14 @@ void check_ply_layout(const std::string& path) {
       ended = true;
       break;
     }
-    if (t[0] == "format" && t.size() >= 2) {
+    if (t[0] == "format") {
+      // OpenMesh 9.0's PLY reader loops forever printing "Unsupported keyword"
+      // when the version is not a number (tests/fuzz/fuzz_ply), so the line is
+      // checked in full: format ascii|binary_little_endian|binary_big_endian 1.0.
+      if (t.size() != 3 || (t[1] != "ascii" && t[1] != "binary_little_endian" && t[1] != "binary_big_endian"))
+        throw InputError(path, where, "malformed format line (expected 'format ascii|binary_little_endian|"
+                                      "binary_big_endian 1.0')");
+      if (t[2] != "1.0" && t[2] != "1") throw InputError(path, where, "unsupported PLY version '" + t[2] + "'");
       format = t[1];
     } else if (t[0] == "element") {
       Element e;

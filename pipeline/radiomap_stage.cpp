@@ -134,6 +134,10 @@ RadioMapSettings load_radiomap_settings(const std::string& path) {
   using namespace toml_fields;
   RadioMapSettings s;
   if (path.empty()) return s;
+  // Validates the file and its top-level sections; a TOML syntax error is a
+  // ConfigError naming the file and line there (toml++'s parse_error escaped
+  // from here with neither: tests/fuzz/fuzz_toml).
+  load_scene_config(path);
   const toml::table root = toml::parse_file(path);
   const toml::table* t = root["radiomap"].as_table();
   if (!t) return s;

@@ -158,6 +158,11 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
   t.path_ = path;
   t.carrier_hz_ = r.num_attr<double>("carrier_hz", H5T_NATIVE_DOUBLE);
   t.bandwidth_hz_ = r.num_attr<double>("bandwidth_hz", H5T_NATIVE_DOUBLE);
+  // Noise power and the ns-3 table's header come from these: a bad value must
+  // be named here, not where a later computation or writer trips on it
+  // (tests/fuzz/fuzz_dataset_h5).
+  for (const auto& [name, v] : {std::pair{"carrier_hz", t.carrier_hz_}, std::pair{"bandwidth_hz", t.bandwidth_hz_}})
+    if (!(std::isfinite(v) && v > 0)) r.fail(std::string("attribute ") + name, "is not a positive number");
   t.seed_ = r.num_attr<std::uint64_t>("seed", H5T_NATIVE_UINT64);
 
   const hsize_t frames = r.rows("/frames/time_s");
