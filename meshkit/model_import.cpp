@@ -23,6 +23,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <regex>
 #include <sstream>
 #include <unordered_map>
 #include <utility>
@@ -1035,13 +1036,38 @@ void check_off_layout(const std::string& path) {
     throw InputError(path, "", "truncated: the header declares " + std::to_string(nv) + " vertices and " +
                                    std::to_string(nf) + " faces, the file has " + std::to_string(data.size() - 2) +
                                    " data lines");
-  for (std::size_t i = 0; i < nv; ++i)
-    if (tokens_of(data[2 + i]).size() < 3) throw InputError(path, "vertex " + std::to_string(i), "needs 3 coordinates");
+  // OpenMesh 9.0's OFF reader loops forever once its stream fails on a token
+  // (a vertex index or a colour past 2^32 did: tests/fuzz/fuzz_off), so every
+  // token of the counts, vertex and face lines must be a plain decimal number,
+  // integers within 32 bits, and the indices below the vertex count.
+  static const std::regex decimal(R"([+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+  static const std::regex integer(R"([+-]?[0-9]+)");
+  auto check_numbers = [&](const std::vector<std::string>& t, const std::string& element) {
+    for (const std::string& tok : t) {
+      const bool is_int = std::regex_match(tok, integer);
+      const double v = std::strtod(tok.c_str(), nullptr);
+      if (!std::regex_match(tok, decimal) || !std::isfinite(v) || (is_int && std::fabs(v) > 2147483647.0))
+        throw InputError(path, element, quote(tok) + " is not a finite number (integers within 32 bits)");
+    }
+  };
+  check_numbers(counts, "header");
+  for (std::size_t i = 0; i < nv; ++i) {
+    const auto t = tokens_of(data[2 + i]);
+    if (t.size() < 3) throw InputError(path, "vertex " + std::to_string(i), "needs 3 coordinates");
+    check_numbers(t, "vertex " + std::to_string(i));
+  }
   for (std::size_t f = 0; f < nf; ++f) {
     const auto t = tokens_of(data[2 + nv + f]);
     std::size_t k = 0;
     if (!parse_count(t[0], k) || t.size() < k + 1)
       throw InputError(path, "face " + std::to_string(f), "corner count " + quote(t[0]) + " does not match its line");
+    check_numbers(t, "face " + std::to_string(f));
+    for (std::size_t c = 1; c <= k; ++c) {
+      std::size_t index = 0;
+      if (!parse_count(t[c], index) || index >= nv)
+        throw InputError(path, "face " + std::to_string(f),
+                         "vertex index " + quote(t[c]) + " is not below the vertex count " + std::to_string(nv));
+    }
   }
 }
 

@@ -138,9 +138,14 @@ void check_ply_layout(const std::string& path) {
   };
   std::vector<Element> elements;
   std::string line, format;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return;  // the readers report non-PLY files
+  // OpenMesh takes the magic token-wise (" ply" passes), so this does too;
+  // the readers report files that do not start with it.
+  std::size_t number = 1;
+  for (; std::getline(in, line); ++number)
+    if (!words_of(line).empty()) break;
+  if (!in || words_of(line)[0] != "ply") return;
   bool ended = false;
-  for (std::size_t number = 2; std::getline(in, line); ++number) {
+  for (++number; std::getline(in, line); ++number) {
     const auto t = words_of(line);
     if (t.empty()) continue;
     const std::string where = "header line " + std::to_string(number);
@@ -148,6 +153,10 @@ void check_ply_layout(const std::string& path) {
       ended = true;
       break;
     }
+    // OpenMesh 9.0's PLY reader reads the header token by token and loops
+    // forever once its stream fails; only the keywords of the PLY format pass.
+    if (t[0] != "format" && t[0] != "element" && t[0] != "property" && t[0] != "comment" && t[0] != "obj_info")
+      throw InputError(path, where, "unknown header keyword " + std::string(1, '\'') + t[0] + "'");
     if (t[0] == "format") {
       // OpenMesh 9.0's PLY reader loops forever printing "Unsupported keyword"
       // when the version is not a number (tests/fuzz/fuzz_ply), so the line is

@@ -182,6 +182,49 @@ TEST(FuzzRegressions, PlyFormatLineWithoutAVersionIsAClearError) {
   EXPECT_NO_THROW(meshkit::check_ply_layout((dir / "f.ply").string()));
 }
 
+// OFF numbers OpenMesh 9.0 cannot read (an index or colour past 2^32) failed its
+// stream, and its OFF reader then looped forever (timeout in fuzz_off). The
+// layout check now requires plain decimal numbers, integers within 32 bits and
+// indices below the vertex count.
+TEST(FuzzRegressions, OffNumbersOpenMeshCannotReadAreClearErrors) {
+  const fs::path dir = scratch_dir("offnum");
+  const fs::path in = copy_as(corpus("off", "timeout-640828d7c4c9204371e521b4d019d77957567c14"), dir, "x.off");
+  try {
+    meshkit::import_model(in.string(), {});
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), in.string());
+    EXPECT_EQ(e.element(), "face 0");
+  }
+  const std::string head = "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n";
+  for (const std::string face : {"3 0 1 3", "3 0 1 99999999999999999999", "3 0 1 2 4294967296", "3 0 1 2 0x10"}) {
+    raysweep::test::write_text(dir / "f.off", head + face + "\n");
+    EXPECT_THROW(meshkit::import_model((dir / "f.off").string(), {1.0, "", 0}), meshkit::InputError) << face;
+  }
+  raysweep::test::write_text(dir / "f.off", "OFF\n3 1 0\n0 0 0\n1 0 nan\n0 1 0\n3 0 1 2\n");
+  EXPECT_THROW(meshkit::import_model((dir / "f.off").string(), {1.0, "", 0}), meshkit::InputError);
+  raysweep::test::write_text(dir / "f.off", head + "3 0 1 2 255 0 0\n");  // a face colour is fine
+  EXPECT_EQ(meshkit::import_model((dir / "f.off").string(), {1.0, "", 0}).triangle_count(), 1u);
+}
+
+// A PLY header OpenMesh reads token by token into a failed stream (magic after
+// a space, then lines that are no PLY keyword) looped its reader forever
+// (timeout in fuzz_ply). check_ply_layout now takes the magic as OpenMesh does
+// and refuses unknown header keywords, naming the line.
+TEST(FuzzRegressions, PlyHeaderWithUnknownKeywordsIsAClearError) {
+  const fs::path dir = scratch_dir("plykw");
+  const fs::path in = copy_as(corpus("ply", "timeout-f69a3a94bc39bacf53ca8d648be9bc8b0713cde7"), dir, "x.ply");
+  try {
+    meshkit::import_model(in.string(), {});
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), in.string());
+    EXPECT_EQ(e.element().rfind("header line ", 0), 0u) << e.element();
+  }
+  raysweep::test::write_text(dir / "k.ply", " ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nvertices 3\nend_header\n");
+  EXPECT_THROW(meshkit::check_ply_layout((dir / "k.ply").string()), meshkit::InputError);
+}
+
 // A TOML syntax error (a quote inside a key) reached load_radiomap_settings'
 // own parse: toml++'s parse_error escaped, naming neither file nor line, and
 // the CLI exited 1. It now goes through the common check first: a ConfigError
