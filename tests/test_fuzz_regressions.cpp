@@ -271,6 +271,19 @@ void set_f64_attr(const fs::path& file, const std::string& obj, const std::strin
   return ::testing::AssertionFailure() << "'" << text << "' does not start with '" << prefix << "'";
 }
 
+// Replaces the root attribute `name` of `file` by an array of `n` fixed-length strings.
+void make_string_array_attr(const fs::path& file, const std::string& name, hsize_t n) {
+  raysweep::test::H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+  ASSERT_GE(H5Adelete(f.id, name.c_str()), 0);
+  raysweep::test::H5 t{H5Tcopy(H5T_C_S1), H5Tclose};
+  H5Tset_size(t.id, 8);
+  raysweep::test::H5 sp{H5Screate_simple(1, &n, nullptr), H5Sclose};
+  raysweep::test::H5 a{H5Acreate2(f.id, name.c_str(), t.id, sp.id, H5P_DEFAULT, H5P_DEFAULT), H5Aclose};
+  ASSERT_GE(a.id, 0);
+  const std::string data(8 * n, 'x');
+  ASSERT_GE(H5Awrite(a.id, t.id, data.data()), 0);
+}
+
 std::string error_of(const std::function<void()>& f) {
   try {
     f();
@@ -319,4 +332,41 @@ TEST(FuzzRegressions, ChannelDatasetWithBadBandwidthNamesTheAttribute) {
   EXPECT_NE(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); })
                 .find(file.string() + ": /cfr attribute subcarrier_spacing_hz"),
             std::string::npos);
+}
+
+// A string attribute holding an array of strings: the readers passed a buffer
+// for one string to H5Aread, which wrote them all (ASan: stack- and
+// heap-buffer-overflow in fuzz_sinr_h5 and fuzz_ns3_table_h5). Now "not a
+// single value", naming file and attribute, in every reader.
+TEST(FuzzRegressions, StringAttributeArrayIsNotASingleValue) {
+  const fs::path dir = scratch_dir("strattr");
+  const fs::path sinr = dir / "sinr.h5", table = dir / "table.h5", channels = dir / "channels.h5";
+  raysweep::fuzz::write_sinr_base(sinr.string());
+  raysweep::fuzz::write_ns3_base(table.string());
+  raysweep::fuzz::write_channel_base(channels.string());
+  make_string_array_attr(sinr, "format", 3);
+  make_string_array_attr(table, "format", 3);
+  make_string_array_attr(channels, "format", 3);
+  auto expect_single_value_error = [](const fs::path& f, const std::string& error) {
+    EXPECT_TRUE(StartsWith(error, f.string() + ": ")) << error;
+    EXPECT_NE(error.find("format: not a single value"), std::string::npos) << error;
+  };
+  for (const fs::path& f : {sinr, table, channels})
+    expect_single_value_error(f, error_of([&] { generators::dataset_info(f.string()); }));
+  expect_single_value_error(sinr, error_of([&] { generators::sinr::read_sinr_schedule(sinr.string()); }));
+  expect_single_value_error(table, error_of([&] { generators::Ns3Table::load(table.string()); }));
+  expect_single_value_error(channels, error_of([&] { generators::sinr::ChannelTrace::load(channels.string()); }));
+}
+
+// A link whose LoS class is no code (88): ChannelTrace::load took it, the SINR
+// channel models would index by it, and `raysweep ns3-table` failed in the
+// table writer naming its own output. Now the reader names /links/los_class.
+TEST(FuzzRegressions, UnknownLosClassIsNamedByTheChannelReader) {
+  const fs::path dir = scratch_dir("los");
+  const fs::path file = dir / "channels.h5";
+  raysweep::fuzz::write_channel_base(file.string());
+  raysweep::test::poke<std::uint8_t>(file, "/links/los_class", 1, 88, H5T_NATIVE_UINT8);
+  const std::string expected = file.string() + ": /links/los_class: row 1: unknown LoS class 88";
+  EXPECT_TRUE(StartsWith(error_of([&] { generators::sinr::ChannelTrace::load(file.string()); }), expected));
+  EXPECT_TRUE(StartsWith(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); }), expected));
 }
