@@ -119,6 +119,23 @@ TEST(FuzzRegressions, OsmPbfTruncatedProtobufIsAClearError) {
   }
 }
 
+// Every failed read of a corrupt PBF leaked libosmium's file descriptor (the
+// fuzzer ran out of descriptors after ~20,000 inputs). PBF is now read from
+// memory; reading it again and again keeps the process's descriptors.
+TEST(FuzzRegressions, CorruptPbfDoesNotLeakFileDescriptors) {
+  const fs::path dir = scratch_dir("pbffd");
+  const fs::path in = copy_as(corpus("osm_pbf", "crash-c8ebe1ffb896b056f14df59cec7ad10d5534171a"), dir, "x.osm.pbf");
+  auto open_fds = [] {
+    std::size_t n = 0;
+    for ([[maybe_unused]] const auto& e : fs::directory_iterator("/proc/self/fd")) ++n;
+    return n;
+  };
+  EXPECT_THROW(meshkit::read_osm_buildings(in.string(), kProject), meshkit::InputError);
+  const std::size_t before = open_fds();
+  for (int i = 0; i < 50; ++i) EXPECT_THROW(meshkit::read_osm_buildings(in.string(), kProject), meshkit::InputError);
+  EXPECT_LE(open_fds(), before);
+}
+
 // A node coordinate with a huge exponent ("13.40021e309") overflows libosmium's
 // int64 scaling (a signed overflow in its header, UBSan in the fuzz build;
 // meshkit/CMakeLists.txt). The reader must neither crash nor place the node at
