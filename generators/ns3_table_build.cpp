@@ -108,6 +108,12 @@ Ns3TableBuildStats build_ns3_table(const std::string& dataset, const std::filesy
       // Subcarrier j is at carrier + (j - floor(K / 2)) * spacing; a band's centre is its subcarriers' mean.
       const double mid = first + 0.5 * (subcarriers_per_band - 1) - std::floor(k / 2.0);
       bands.center_hz.push_back(cfr.carrier_hz() + mid * cfr.spacing_hz());
+      // A carrier so large that the spacing vanishes in rounding gives equal
+      // centres, which the table writer refused naming its own output
+      // (tests/fuzz/fuzz_dataset_h5): name the dataset's attributes instead.
+      if (bands.center_hz.size() > 1 && !(bands.center_hz.back() > bands.center_hz[bands.center_hz.size() - 2]))
+        throw meshkit::InputError(dataset, "/cfr",
+                                  "carrier_hz and subcarrier_spacing_hz give band centres that are not increasing");
     }
   }
 

@@ -7,6 +7,7 @@
 #include <charconv>
 #include <fstream>
 #include <iterator>
+#include <regex>
 #include <sstream>
 
 #include "meshkit/errors.hpp"
@@ -202,6 +203,12 @@ void check_ply_layout(const std::string& path) {
     // non-negative integer that fits its type, and its items must follow.
     std::vector<std::string> tokens;
     for (std::string tok; in >> tok;) tokens.push_back(tok);
+    // Every value a plain decimal number: OpenMesh reads "7-3" as 7 and then
+    // -3 as the next list length and grew a face to 3 GB (tests/fuzz/fuzz_ply).
+    static const std::regex decimal(R"([+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+    auto check_number = [&](const std::string& tok, const std::string& where) {
+      if (!std::regex_match(tok, decimal)) throw InputError(path, where, "'" + tok + "' is not a number");
+    };
     std::size_t at = 0;
     for (const Element& e : elements)
       for (std::size_t i = 0; i < e.count; ++i)
@@ -218,7 +225,10 @@ void check_ply_layout(const std::string& path) {
             if (bits < 64 && n >> bits)
               throw InputError(path, where, "list length " + tok + " does not fit its type");
             if (n > tokens.size() - at - 1) throw InputError(path, where, "truncated: list of " + tok + " items");
+            for (std::size_t k = 1; k <= n; ++k) check_number(tokens[at + k], where);
             at += n;
+          } else {
+            check_number(tokens[at], where);
           }
           ++at;
         }

@@ -242,6 +242,21 @@ TEST(FuzzRegressions, PlyHeaderWithUnknownKeywordsIsAClearError) {
   EXPECT_THROW(meshkit::check_ply_layout((dir / "k.ply").string()), meshkit::InputError);
 }
 
+// An ascii PLY face line "3 4 5 7-3 4 7 6": OpenMesh read 7, then -3 as the
+// next list length, and grew one face to 3 GB (out-of-memory in fuzz_ply).
+// check_ply_layout now requires every ascii value to be a plain number.
+TEST(FuzzRegressions, PlyAsciiValueThatIsNoNumberIsAClearError) {
+  const fs::path dir = scratch_dir("plynum");
+  const fs::path in = copy_as(corpus("ply", "oom-bc115edf4cab9d4d4feec139edf2a5f0d0f2a63a"), dir, "x.ply");
+  try {
+    meshkit::import_model(in.string(), {});
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), in.string());
+    EXPECT_EQ(e.element(), "face 2");
+  }
+}
+
 // A TOML syntax error (a quote inside a key) reached load_radiomap_settings'
 // own parse: toml++'s parse_error escaped, naming neither file nor line, and
 // the CLI exited 1. It now goes through the common check first: a ConfigError
@@ -344,6 +359,10 @@ TEST(FuzzRegressions, ChannelDatasetWithBadBandwidthNamesTheAttribute) {
     EXPECT_TRUE(StartsWith(error_of([&] { generators::sinr::ChannelTrace::load(file.string()); }), expected));
     EXPECT_TRUE(StartsWith(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); }), expected));
   }
+  raysweep::fuzz::write_channel_base(file.string());
+  set_f64_attr(file, "/cfr", "carrier_hz", 1e30);  // the spacing vanishes in rounding: equal band centres
+  EXPECT_TRUE(StartsWith(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); }),
+                         file.string() + ": /cfr: carrier_hz and subcarrier_spacing_hz give band centres"));
   raysweep::fuzz::write_channel_base(file.string());
   set_f64_attr(file, "/cfr", "subcarrier_spacing_hz", -1);
   EXPECT_NE(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); })
