@@ -1062,11 +1062,21 @@ void check_off_layout(const std::string& path) {
     if (!parse_count(t[0], k) || t.size() < k + 1)
       throw InputError(path, "face " + std::to_string(f), "corner count " + quote(t[0]) + " does not match its line");
     check_numbers(t, "face " + std::to_string(f));
+    // OpenMesh reads what follows the indices as a colour (3 or 4 values, 0-255
+    // or 0-1); anything else desynchronised it into a 3 GB face (fuzz_off).
+    if (k < 3) throw InputError(path, "face " + std::to_string(f), "has " + std::to_string(k) + " corners (at least 3)");
+    if (t.size() > k + 5)
+      throw InputError(path, "face " + std::to_string(f), "more values after the indices than a colour");
+    for (std::size_t c = k + 1; c < t.size(); ++c) {
+      const double v = std::strtod(t[c].c_str(), nullptr);
+      if (!(v >= 0 && v <= 255))
+        throw InputError(path, "face " + std::to_string(f), "colour value " + quote(t[c]) + " is not within 0 to 255");
+    }
     for (std::size_t c = 1; c <= k; ++c) {
       std::size_t index = 0;
       if (!parse_count(t[c], index) || index >= nv)
         throw InputError(path, "face " + std::to_string(f),
-                         "vertex index " + quote(t[c]) + " is not below the vertex count " + std::to_string(nv));
+                         "vertex index " + quote(t[c]) + " out of range (" + std::to_string(nv) + " vertices)");
     }
   }
 }
