@@ -11,6 +11,7 @@ PACKAGES=(
   libosmium2-dev libexpat1-dev zlib1g-dev libbz2-dev libproj-dev proj-bin
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libtomlplusplus-dev libssl-dev
   libgtest-dev libbenchmark-dev
+  clang libclang-rt-14-dev
   sumo sumo-tools
   libns3-dev ns3 libgsl-dev
   openmpi-bin libopenmpi-dev

@@ -143,7 +143,7 @@ class Validator {
     for (const auto& g : schema_.at("groups"))
       for (const auto& d : g.at("datasets")) guarded(path_of(g, d), [&] { check_values(g, d); });
     rules();
-    for (const auto& [p, ds] : good_) guarded(p, [&] { check_readable(p, ds.get()); });
+    for (const auto& entry : good_) guarded(entry.first, [&] { check_readable(entry.first, entry.second.get()); });
   }
 
  protected:
@@ -859,20 +859,23 @@ struct InfoReader {
     const auto slash = p.find('/', 1);
     return has_link(fid.get(), p.substr(1, slash - 1)) && (slash == std::string::npos || has_link(fid.get(), p.substr(1)));
   }
+  // The first dimension; a ReadError for a scalar dataset (fuzz_sinr_h5 found
+  // dims.at(0) throwing std::out_of_range past guard() here).
+  static hsize_t length(hid_t d, const std::string& p) {
+    const auto dims = dataset_dims(d, p);
+    if (dims.empty()) throw ReadError(p + ": not an array");
+    return dims[0];
+  }
   hsize_t rows(const std::string& p) const {
     Handle d = open(p);
-    return guard(p, [&] {
-      const auto dims = dataset_dims(d.get(), p);
-      if (dims.empty()) throw ReadError(p + ": not an array");
-      return dims[0];
-    });
+    return guard(p, [&] { return length(d.get(), p); });
   }
   // Calls fn(block) for consecutive blocks of an integer column.
   template <class Fn>
   void scan_u64(const std::string& p, Fn&& fn) const {
     Handle d = open(p);
     guard(p, [&] {
-      const hsize_t n = dataset_dims(d.get(), p).at(0);
+      const hsize_t n = length(d.get(), p);
       for (hsize_t start = 0; start < n; start += kBlockRows) fn(read_u64(d.get(), p, start, std::min(kBlockRows, n - start)));
       return 0;
     });
@@ -884,11 +887,11 @@ struct InfoReader {
   // Every element of a numeric column.
   std::vector<double> all_f64(const std::string& p) const {
     Handle d = open(p);
-    return guard(p, [&] { return read_f64(d.get(), p, 0, dataset_dims(d.get(), p).at(0)); });
+    return guard(p, [&] { return read_f64(d.get(), p, 0, length(d.get(), p)); });
   }
   std::vector<std::uint64_t> all_u64(const std::string& p) const {
     Handle d = open(p);
-    return guard(p, [&] { return read_u64(d.get(), p, 0, dataset_dims(d.get(), p).at(0)); });
+    return guard(p, [&] { return read_u64(d.get(), p, 0, length(d.get(), p)); });
   }
   template <class T>
   std::optional<T> num_attr(hid_t loc, const std::string& name, hid_t mtype) const {
@@ -935,7 +938,7 @@ nlohmann::json channel_info(const InfoReader& r) {
   {
     Handle d = r.open("/frames/time_s");
     const auto t = r.guard("/frames/time_s", [&] {
-      return read_f64(d.get(), "/frames/time_s", 0, dataset_dims(d.get(), "/frames/time_s").at(0));
+      return read_f64(d.get(), "/frames/time_s", 0, InfoReader::length(d.get(), "/frames/time_s"));
     });
     info["frames"] = t.size();
     info["time_start_s"] = t.empty() ? 0.0 : t.front();

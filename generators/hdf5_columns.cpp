@@ -378,6 +378,11 @@ std::string read_str_attr(hid_t loc, const std::string& where, const std::string
   Handle ftype(H5Aget_type(attr.get()), H5Tclose);
   if (!ftype.valid()) read_fail(where + "attribute " + name, "cannot get type");
   if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(where + "attribute " + name, "not a string");
+  // One string: H5Aread writes every element, so an array attribute overflowed
+  // the one-string buffer below (ASan in tests/fuzz/fuzz_sinr_h5, fuzz_ns3_table_h5).
+  Handle space(H5Aget_space(attr.get()), H5Sclose);
+  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1)
+    read_fail(where + "attribute " + name, "not a single value");
   Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
   if (H5Tis_variable_str(ftype.get()) > 0) {
     if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||

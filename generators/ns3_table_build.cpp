@@ -45,6 +45,11 @@ class CfrReader {
       subcarriers_ = hdf5::read_num_attr<std::uint32_t>(group_.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
       spacing_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
       carrier_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "carrier_hz", H5T_NATIVE_DOUBLE);
+      // The band centres derive from these (the table writer needs them increasing).
+      if (!(std::isfinite(spacing_hz_) && spacing_hz_ > 0))
+        hdf5::read_fail("/cfr attribute subcarrier_spacing_hz", "is not a positive number");
+      if (!(std::isfinite(carrier_hz_) && carrier_hz_ > 0))
+        hdf5::read_fail("/cfr attribute carrier_hz", "is not a positive number");
       h_ = hdf5::Handle(H5Dopen2(group_.get(), "h", H5P_DEFAULT), H5Dclose);
       if (!h_.valid()) hdf5::read_fail("/cfr/h", "cannot open dataset");
       const auto dims = hdf5::dataset_dims(h_.get(), "/cfr/h");
@@ -103,6 +108,12 @@ Ns3TableBuildStats build_ns3_table(const std::string& dataset, const std::filesy
       // Subcarrier j is at carrier + (j - floor(K / 2)) * spacing; a band's centre is its subcarriers' mean.
       const double mid = first + 0.5 * (subcarriers_per_band - 1) - std::floor(k / 2.0);
       bands.center_hz.push_back(cfr.carrier_hz() + mid * cfr.spacing_hz());
+      // A carrier so large that the spacing vanishes in rounding gives equal
+      // centres, which the table writer refused naming its own output
+      // (tests/fuzz/fuzz_dataset_h5): name the dataset's attributes instead.
+      if (bands.center_hz.size() > 1 && !(bands.center_hz.back() > bands.center_hz[bands.center_hz.size() - 2]))
+        throw meshkit::InputError(dataset, "/cfr",
+                                  "carrier_hz and subcarrier_spacing_hz give band centres that are not increasing");
     }
   }
 

@@ -23,6 +23,7 @@
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <set>
+#include <regex>
 #include <sstream>
 #include <unordered_map>
 #include <utility>
@@ -1019,7 +1020,10 @@ void check_off_layout(const std::string& path) {
   while (std::getline(in, line)) {
     const auto hash = line.find('#');
     if (hash != std::string::npos) line.erase(hash);
-    if (line.find_first_not_of(" \t\r") != std::string::npos) data.push_back(line);
+    // A data line holds a token by the stream's whitespace (also \v and \f), as
+    // the checks below and OpenMesh read it (a "\v" line made the face check
+    // index an empty token list: tests/fuzz/fuzz_off).
+    if (!tokens_of(line).empty()) data.push_back(line);
   }
   if (data.empty()) throw InputError(path, "header", "empty file");
   if (data[0].find("BINARY") != std::string::npos) throw InputError(path, "header", "binary OFF is not supported");
@@ -1032,13 +1036,48 @@ void check_off_layout(const std::string& path) {
     throw InputError(path, "", "truncated: the header declares " + std::to_string(nv) + " vertices and " +
                                    std::to_string(nf) + " faces, the file has " + std::to_string(data.size() - 2) +
                                    " data lines");
-  for (std::size_t i = 0; i < nv; ++i)
-    if (tokens_of(data[2 + i]).size() < 3) throw InputError(path, "vertex " + std::to_string(i), "needs 3 coordinates");
+  // OpenMesh 9.0's OFF reader loops forever once its stream fails on a token
+  // (a vertex index or a colour past 2^32 did: tests/fuzz/fuzz_off), so every
+  // token of the counts, vertex and face lines must be a plain decimal number,
+  // integers within 32 bits, and the indices below the vertex count.
+  static const std::regex decimal(R"([+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+  static const std::regex integer(R"([+-]?[0-9]+)");
+  auto check_numbers = [&](const std::vector<std::string>& t, const std::string& element) {
+    for (const std::string& tok : t) {
+      const bool is_int = std::regex_match(tok, integer);
+      const double v = std::strtod(tok.c_str(), nullptr);
+      if (!std::regex_match(tok, decimal) || !std::isfinite(v) || (is_int && std::fabs(v) > 2147483647.0))
+        throw InputError(path, element, quote(tok) + " is not a finite number (integers within 32 bits)");
+    }
+  };
+  check_numbers(counts, "header");
+  for (std::size_t i = 0; i < nv; ++i) {
+    const auto t = tokens_of(data[2 + i]);
+    if (t.size() < 3) throw InputError(path, "vertex " + std::to_string(i), "needs 3 coordinates");
+    check_numbers(t, "vertex " + std::to_string(i));
+  }
   for (std::size_t f = 0; f < nf; ++f) {
     const auto t = tokens_of(data[2 + nv + f]);
     std::size_t k = 0;
     if (!parse_count(t[0], k) || t.size() < k + 1)
       throw InputError(path, "face " + std::to_string(f), "corner count " + quote(t[0]) + " does not match its line");
+    check_numbers(t, "face " + std::to_string(f));
+    // OpenMesh reads what follows the indices as a colour (3 or 4 values, 0-255
+    // or 0-1); anything else desynchronised it into a 3 GB face (fuzz_off).
+    if (k < 3) throw InputError(path, "face " + std::to_string(f), "has " + std::to_string(k) + " corners (at least 3)");
+    if (t.size() > k + 5)
+      throw InputError(path, "face " + std::to_string(f), "more values after the indices than a colour");
+    for (std::size_t c = k + 1; c < t.size(); ++c) {
+      const double v = std::strtod(t[c].c_str(), nullptr);
+      if (!(v >= 0 && v <= 255))
+        throw InputError(path, "face " + std::to_string(f), "colour value " + quote(t[c]) + " is not within 0 to 255");
+    }
+    for (std::size_t c = 1; c <= k; ++c) {
+      std::size_t index = 0;
+      if (!parse_count(t[c], index) || index >= nv)
+        throw InputError(path, "face " + std::to_string(f),
+                         "vertex index " + quote(t[c]) + " out of range (" + std::to_string(nv) + " vertices)");
+    }
   }
 }
 

@@ -3,9 +3,12 @@
 #include <osmium/io/any_input.hpp>
 #include <osmium/osm.hpp>
 #include <osmium/visitor.hpp>
+#include <protozero/exception.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <optional>
@@ -108,6 +111,17 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
 
   try {
     osmium::io::File file(path);
+    // PBF is read from memory: libosmium 2.19 leaks the file's descriptor when a
+    // PBF block is corrupt (one per failed read, found by tests/fuzz/fuzz_osm_pbf),
+    // and PBF extracts are compact. XML streams from the file as before.
+    std::string pbf;
+    if (file.format() == osmium::io::file_format::pbf) {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) throw InputError(path, "", "cannot open OSM file");
+      pbf.assign(std::istreambuf_iterator<char>(in), {});
+      if (in.bad()) throw InputError(path, "", "cannot read OSM file");
+      file = osmium::io::File(pbf.data(), pbf.size(), "pbf");
+    }
     osmium::io::Reader reader(file, osmium::osm_entity_bits::node | osmium::osm_entity_bits::way |
                                         osmium::osm_entity_bits::relation);
     while (osmium::memory::Buffer buffer = reader.read()) {
@@ -165,6 +179,10 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
   } catch (const std::runtime_error& e) {
     // libosmium reports truncated compressed input and PBF errors this way.
     throw InputError(path, "", std::string("cannot read OSM file: ") + e.what());
+  } catch (const protozero::exception& e) {
+    // A PBF block whose protobuf encoding ends early or is malformed: protozero's
+    // exceptions derive from std::exception only (found by tests/fuzz/fuzz_osm_pbf).
+    throw InputError(path, "", std::string("corrupt OSM PBF data: ") + e.what());
   }
   if (out.nodes > 0 && std::isfinite(min_lon)) {
     out.min_lon = min_lon;

@@ -7,6 +7,7 @@
 #include <charconv>
 #include <fstream>
 #include <iterator>
+#include <regex>
 #include <sstream>
 
 #include "meshkit/errors.hpp"
@@ -138,9 +139,14 @@ void check_ply_layout(const std::string& path) {
   };
   std::vector<Element> elements;
   std::string line, format;
-  if (!std::getline(in, line) || line.rfind("ply", 0) != 0) return;  // the readers report non-PLY files
+  // OpenMesh takes the magic token-wise (" ply" passes), so this does too;
+  // the readers report files that do not start with it.
+  std::size_t number = 1;
+  for (; std::getline(in, line); ++number)
+    if (!words_of(line).empty()) break;
+  if (!in || words_of(line)[0] != "ply") return;
   bool ended = false;
-  for (std::size_t number = 2; std::getline(in, line); ++number) {
+  for (++number; std::getline(in, line); ++number) {
     const auto t = words_of(line);
     if (t.empty()) continue;
     const std::string where = "header line " + std::to_string(number);
@@ -148,7 +154,18 @@ void check_ply_layout(const std::string& path) {
       ended = true;
       break;
     }
-    if (t[0] == "format" && t.size() >= 2) {
+    // OpenMesh 9.0's PLY reader reads the header token by token and loops
+    // forever once its stream fails; only the keywords of the PLY format pass.
+    if (t[0] != "format" && t[0] != "element" && t[0] != "property" && t[0] != "comment" && t[0] != "obj_info")
+      throw InputError(path, where, "unknown header keyword " + std::string(1, '\'') + t[0] + "'");
+    if (t[0] == "format") {
+      // OpenMesh 9.0's PLY reader loops forever printing "Unsupported keyword"
+      // when the version is not a number (tests/fuzz/fuzz_ply), so the line is
+      // checked in full: format ascii|binary_little_endian|binary_big_endian 1.0.
+      if (t.size() != 3 || (t[1] != "ascii" && t[1] != "binary_little_endian" && t[1] != "binary_big_endian"))
+        throw InputError(path, where, "malformed format line (expected 'format ascii|binary_little_endian|"
+                                      "binary_big_endian 1.0')");
+      if (t[2] != "1.0" && t[2] != "1") throw InputError(path, where, "unsupported PLY version '" + t[2] + "'");
       format = t[1];
     } else if (t[0] == "element") {
       Element e;
@@ -186,6 +203,12 @@ void check_ply_layout(const std::string& path) {
     // non-negative integer that fits its type, and its items must follow.
     std::vector<std::string> tokens;
     for (std::string tok; in >> tok;) tokens.push_back(tok);
+    // Every value a plain decimal number: OpenMesh reads "7-3" as 7 and then
+    // -3 as the next list length and grew a face to 3 GB (tests/fuzz/fuzz_ply).
+    static const std::regex decimal(R"([+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?)");
+    auto check_number = [&](const std::string& tok, const std::string& where) {
+      if (!std::regex_match(tok, decimal)) throw InputError(path, where, "'" + tok + "' is not a number");
+    };
     std::size_t at = 0;
     for (const Element& e : elements)
       for (std::size_t i = 0; i < e.count; ++i)
@@ -202,7 +225,10 @@ void check_ply_layout(const std::string& path) {
             if (bits < 64 && n >> bits)
               throw InputError(path, where, "list length " + tok + " does not fit its type");
             if (n > tokens.size() - at - 1) throw InputError(path, where, "truncated: list of " + tok + " items");
+            for (std::size_t k = 1; k <= n; ++k) check_number(tokens[at + k], where);
             at += n;
+          } else {
+            check_number(tokens[at], where);
           }
           ++at;
         }

@@ -2,7 +2,10 @@
 # The test suite under AddressSanitizer + UndefinedBehaviorSanitizer, in its
 # own incremental build (build-asan/): every unit and behaviour test; the long
 # end-to-end CLI runs, ns-3 and Blender stay in the Release suite (setup.sh's
-# build). Any sanitizer report fails its test. Usage: bash tests/sanitize.sh
+# build). Any sanitizer report fails its test. Then every fuzz target of
+# tests/fuzz/ runs a few seconds on its corpus (tests/fuzz.sh: clang +
+# libFuzzer in build-fuzz/, skipped where clang is missing).
+# Usage: bash tests/sanitize.sh
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export SUMO_HOME=/usr/share/sumo
@@ -14,3 +17,4 @@ export ASAN_OPTIONS="detect_leaks=1:abort_on_error=1:strict_string_checks=1:dete
 export LSAN_OPTIONS="suppressions=$PWD/tests/sanitize.supp:print_suppressions=0"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
 ctest --test-dir build-asan --output-on-failure -j"$(nproc)" -E '^(Cli|RunSinr|ns3_|Render\.|FcdMemory\.)'
+bash tests/fuzz.sh

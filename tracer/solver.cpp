@@ -1025,7 +1025,9 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   tbb::enumerable_thread_specific<SnapshotStats::Timing> pair_time;
   const auto t_pairs = std::chrono::steady_clock::now();
   tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t p) {
-    auto [i, j] = pairs[p];
+    // Not a structured binding: the lambda below uses i and j, which clang < 16
+    // (the fuzz build's clang 14) cannot capture.
+    const auto i = pairs[p].first, j = pairs[p].second;
     PairResult& res = snap.pairs[p];
     res.tx = i;
     res.rx = j;

@@ -60,6 +60,9 @@ class Reader {
     Handle a(H5Aopen(fid_.get(), name, H5P_DEFAULT), H5Aclose);
     Handle t(a.valid() ? H5Aget_type(a.get()) : H5I_INVALID_HID, H5Tclose);
     if (!t.valid() || H5Tget_class(t.get()) != H5T_STRING) fail(el, "not a string");
+    // One string: H5Aread writes every element of an array attribute.
+    Handle sp(H5Aget_space(a.get()), H5Sclose);
+    if (!sp.valid() || H5Sget_simple_extent_npoints(sp.get()) != 1) fail(el, "not a single value");
     if (H5Tis_variable_str(t.get()) > 0) {
       char* p = nullptr;
       if (H5Aread(a.get(), t.get(), &p) < 0) fail(el, "cannot read");
@@ -158,6 +161,11 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
   t.path_ = path;
   t.carrier_hz_ = r.num_attr<double>("carrier_hz", H5T_NATIVE_DOUBLE);
   t.bandwidth_hz_ = r.num_attr<double>("bandwidth_hz", H5T_NATIVE_DOUBLE);
+  // Noise power and the ns-3 table's header come from these: a bad value must
+  // be named here, not where a later computation or writer trips on it
+  // (tests/fuzz/fuzz_dataset_h5).
+  for (const auto& [name, v] : {std::pair{"carrier_hz", t.carrier_hz_}, std::pair{"bandwidth_hz", t.bandwidth_hz_}})
+    if (!(std::isfinite(v) && v > 0)) r.fail(std::string("attribute ") + name, "is not a positive number");
   t.seed_ = r.num_attr<std::uint64_t>("seed", H5T_NATIVE_UINT64);
 
   const hsize_t frames = r.rows("/frames/time_s");
@@ -244,6 +252,13 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
   link_column("/links/gain_incoherent_db", H5T_NATIVE_FLOAT, &Link::gain_db);
   link_column("/links/los_class", H5T_NATIVE_UINT8, &Link::los_class);
   link_column("/links/flags", H5T_NATIVE_UINT8, &Link::flags);
+  // The channel models and the ns-3 table take the LoS class as a code of three
+  // (a 88 reached the table writer, whose error named its own output:
+  // tests/fuzz/fuzz_dataset_h5).
+  for (std::size_t i = 0; i < t.links_.size(); ++i)
+    if (t.links_[i].los_class > 2)
+      r.fail("/links/los_class",
+             "row " + std::to_string(i) + ": unknown LoS class " + std::to_string(t.links_[i].los_class));
 
   try {
     t.finalize();

@@ -1,0 +1,39 @@
+// Channel datasets (HDF5, format raysweep-channels), structure-aware (see
+// h5_mutate.hpp): edits of a valid dataset, then every reader of it the CLI
+// has: generators::DatasetReader (merge: all frames, row offsets),
+// sinr::ChannelTrace::load (the SINR stage), build_ns3_table (`raysweep
+// ns3-table`) and dataset_info (`raysweep info`).
+#include "generators/dataset_reader.hpp"
+#include "generators/dataset_schema.hpp"
+#include "generators/sinr/channel_trace.hpp"
+#include "h5_bases.hpp"
+#include "h5_mutate.hpp"
+
+using namespace raysweep;
+
+namespace {
+std::vector<std::uint8_t> g_base;
+}
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  fuzz::quiet();
+  fuzz::quiet_hdf5();
+  g_base = fuzz::base_bytes("base.h5", fuzz::write_channel_base);
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string path = fuzz::mutated_file("dataset.h5", g_base, data, size);
+  fuzz::expect_clear_errors("DatasetReader", path, [&] {
+    generators::DatasetReader r(path);
+    r.frames(0, r.frame_count());
+    r.rows_at(r.frame_count());
+  });
+  fuzz::expect_clear_errors("ChannelTrace::load", path, [&] { generators::sinr::ChannelTrace::load(path); });
+  fuzz::expect_clear_errors("build_ns3_table", path, [&] {
+    generators::Ns3TableHeader h;
+    generators::build_ns3_table(path, fuzz::scratch() / "table.h5", h, 2);
+  });
+  fuzz::expect_clear_errors("dataset_info", path, [&] { generators::dataset_info(path); });
+  return 0;
+}
