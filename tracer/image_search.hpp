@@ -78,7 +78,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
 
 // A static face and a vehicle the shoot-and-bounce rays of one source reach
 // in that order (a ray reflected by the face passes within the vehicle's
-// sphere, widened by the ray spacing): where a wall's echo off a third
+// sphere, widened by the ray spacing): where a wall's echo off a
 // vehicle can exist. Rays sample a wall's beam densely even where they
 // miss every face of a small, far vehicle.
 struct BeamVehicle {

@@ -855,7 +855,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       in_range[p] = 0;  // labelled, never traced
       continue;
     }
-    // Diffuse power is gathered from the lower end's rays only.
+    // Diffuse power: the lower end's rays gather towards the higher end,
+    // and with both ends on, the higher end's rays towards the lower.
     if (ray_diffuse) {
       targets[i].rx.push_back(j);
       if (cfg.diffuse_both_ends) targets[j].rev.push_back(i);
@@ -889,8 +890,6 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         partners[pairs[p].second].push_back(pairs[p].first);
       }
     for (auto& v : partners) std::sort(v.begin(), v.end());
-  }
-  if (image) {
     const auto t_image = std::chrono::steady_clock::now();
     std::vector<std::vector<ImageCandidate>> found(n);
     std::vector<ImageSearchStats> istats(n);
@@ -930,8 +929,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       std::uint64_t rays = 0;
     };
     std::vector<TaskOut> tasks(sources.size() * chunks);
-    // Static face then a third vehicle: the rays say which combinations
-    // can exist, the image method enumerates their faces exactly.
+    // A static face then any vehicle: the rays say which combinations can
+    // exist, the image method enumerates their faces exactly.
     const bool beam_search = image && cfg.max_depth >= 2;
     std::vector<std::vector<BeamVehicle>> beams(beam_search ? n : 0);
     tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {

@@ -129,9 +129,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
 // Diffuse power (the sum of |a|^2 of the diffuse records trace_pairs gives
 // the pairs (src, r)) at each of `receivers` from node `src`'s shoot-and-
 // bounce rays (diffuse_integration = "rays"; 0 otherwise, and beyond range):
-// one source to many points (radio maps) without the pairs' other work. As
-// in trace_pairs, src should be the lower index of each pair, whose rays
-// gather; the path threshold is not applied.
+// one source to many points (radio maps) without the pairs' other work.
+// The points do not shoot, so this is the one-sided estimator: it equals
+// trace_pairs' diffuse with diffuse_both_ends = false (src the lower index
+// of each pair); the path threshold is not applied.
 std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Node>& nodes, std::uint32_t src,
                                   const std::vector<std::uint32_t>& receivers, const TracerConfig& config,
                                   const RadioConfig& radio);
