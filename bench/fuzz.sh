@@ -6,7 +6,8 @@
 #   bash bench/fuzz.sh SECONDS [TARGET...]      # each target for SECONDS
 #   FUZZ_RUNS=1000000 bash bench/fuzz.sh 1800   # ... or until 1e6 executions, whichever comes first
 #
-# FUZZ_NO_BUILD=1 skips the (incremental) build of build-fuzz/.
+# FUZZ_NO_BUILD=1 skips the (incremental) build of build-fuzz/. FUZZ_TABLE=FILE
+# writes the table there instead (two runs side by side, one per core).
 # Corpora grow in fuzz-out/corpus/<target>/ (seeded from tests/fuzz/corpus/,
 # kept between runs); logs in fuzz-out/logs/, findings (crash-, leak-,
 # timeout-, oom- inputs) in fuzz-out/artifacts/<target>/. The table is also
@@ -26,7 +27,7 @@ fuzz_toolchain_ok || exit 1
 [ -n "${FUZZ_NO_BUILD:-}" ] || fuzz_build  # FUZZ_NO_BUILD=1: use build-fuzz/ as it is
 fuzz_env
 mkdir -p fuzz-out/logs
-table="fuzz-out/table.md"
+table="${FUZZ_TABLE:-fuzz-out/table.md}"
 {
   echo "| target | seconds | execs | execs/s | cov | ft | corpus | findings |"
   echo "|---|---|---|---|---|---|---|---|"

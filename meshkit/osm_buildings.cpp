@@ -33,6 +33,20 @@ const char* tag_or_empty(const osmium::TagList& tags, const char* key) {
   return v ? v : "";
 }
 
+// libosmium walks a tag list string by string (strlen) until it meets the
+// list's end exactly. A PBF string-table entry holding a NUL byte splits into
+// two strings, an odd count of NULs makes the walk step over the end, and it
+// reads on past the buffer (heap overflow found by tests/fuzz/fuzz_osm_pbf).
+// Such a list is refused before any tag is looked up.
+void check_tag_list(const osmium::TagList& tags, const std::string& path, const std::string& element) {
+  const unsigned char* begin = tags.data() + sizeof(osmium::TagList);
+  const unsigned char* end = tags.data() + tags.byte_size();
+  if (end < begin) throw InputError(path, element, "corrupt tag list");
+  const auto nuls = std::count(begin, end, static_cast<unsigned char>(0));
+  if (nuls % 2 != 0 || (end > begin && end[-1] != 0))
+    throw InputError(path, element, "corrupt tag list (a key or value holds a NUL byte)");
+}
+
 bool is_building(const osmium::TagList& tags, bool& is_part) {
   const char* b = tags.get_value_by_key("building");
   const char* p = tags.get_value_by_key("building:part");
@@ -140,6 +154,7 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
           ++out.ways;
           WayRec rec;
           for (const auto& nr : w.nodes()) rec.nodes.push_back(nr.ref());
+          check_tag_list(w.tags(), path, "way/" + std::to_string(w.id()));
           bool part = false;
           if (is_building(w.tags(), part)) {
             PendingWay pw{w.id(), {}, rec.nodes};
@@ -152,6 +167,7 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
         } else if (item.type() == osmium::item_type::relation) {
           const auto& r = static_cast<const osmium::Relation&>(item);
           ++out.relations;
+          check_tag_list(r.tags(), path, "relation/" + std::to_string(r.id()));
           const char* type = r.tags().get_value_by_key("type");
           bool part = false;
           if (!type || (std::string_view(type) != "multipolygon" && std::string_view(type) != "building"))
@@ -169,6 +185,8 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
       }
     }
     reader.close();
+  } catch (const InputError&) {
+    throw;  // already names the file and element
   } catch (const osmium::xml_error& e) {
     throw InputError(path, "line " + std::to_string(e.line) + " column " + std::to_string(e.column),
                      std::string("malformed OSM XML: ") + e.error_string);

@@ -20,7 +20,7 @@ fuzz_env
 failed=()
 # Targets with an open finding (tests/fuzz/open/README.md) only replay their
 # corpus (-runs=0) instead of mutating it, so CI does not fail on it by chance.
-REPLAY_ONLY=" osm_pbf "
+REPLAY_ONLY=" "
 # A fixed seed and a fixed number of inputs per target (1-3 s of each on the
 # 2-core machine; the time limit is only a cap):
 # every run explores the same inputs, so a CI failure reproduces, and CI does
@@ -28,7 +28,7 @@ REPLAY_ONLY=" osm_pbf "
 ci_runs() {
   case "$1" in
     dataset_h5) echo 80 ;; ns3_table_h5) echo 200 ;; sinr_h5) echo 400 ;; osm_xml) echo 1500 ;;
-    fcd) echo 3000 ;; vtypes|toml) echo 4000 ;; sumo_net|off) echo 6000 ;; *) echo 10000 ;;
+    fcd|osm_pbf) echo 3000 ;; vtypes|toml) echo 4000 ;; sumo_net|off) echo 6000 ;; *) echo 10000 ;;
   esac
 }
 for t in "${FUZZ_TARGETS[@]}"; do

@@ -119,6 +119,23 @@ TEST(FuzzRegressions, OsmPbfTruncatedProtobufIsAClearError) {
   }
 }
 
+// A PBF string-table entry holding a NUL byte: libosmium copies it into a way's
+// tag list, whose strlen walk then steps over the list's end and reads past its
+// buffer (ASan heap-buffer-overflow under TagList::find_key in fuzz_osm_pbf).
+// The tag list is now checked first and the way named.
+TEST(FuzzRegressions, OsmPbfTagWithNulByteIsAClearError) {
+  const fs::path dir = scratch_dir("pbfnul");
+  const fs::path in = copy_as(corpus("osm_pbf", "crash-151041f14f9e2c89d6ae354d8baad10eca62915d"), dir, "x.osm.pbf");
+  try {
+    meshkit::read_osm_buildings(in.string(), kProject);
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), in.string());
+    EXPECT_EQ(e.element().rfind("way/", 0), 0u) << e.what();
+    EXPECT_NE(std::string(e.what()).find("corrupt tag list"), std::string::npos) << e.what();
+  }
+}
+
 // Every failed read of a corrupt PBF leaked libosmium's file descriptor (the
 // fuzzer ran out of descriptors after ~20,000 inputs). PBF is now read from
 // memory; reading it again and again keeps the process's descriptors.
@@ -240,6 +257,24 @@ TEST(FuzzRegressions, PlyHeaderWithUnknownKeywordsIsAClearError) {
   }
   raysweep::test::write_text(dir / "k.ply", " ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nvertices 3\nend_header\n");
   EXPECT_THROW(meshkit::check_ply_layout((dir / "k.ply").string()), meshkit::InputError);
+}
+
+// A binary PLY whose magic is upper case ("PLY"), with a NUL byte in a comment
+// and broken keyword lines: check_ply_layout took the magic in lower case only
+// and returned without a check, and OpenMesh, which takes it in any case, looped
+// (timeout in fuzz_ply). The magic is now compared as OpenMesh compares it.
+TEST(FuzzRegressions, PlyUpperCaseMagicIsCheckedToo) {
+  const fs::path dir = scratch_dir("plycase");
+  const fs::path in = copy_as(corpus("ply", "timeout-5b27385a349d722b48299626dad7e344c963bada"), dir, "x.ply");
+  try {
+    meshkit::import_model(in.string(), {});
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), in.string());
+    EXPECT_EQ(e.element(), "header line 13") << e.what();  // "*ted b0"
+  }
+  raysweep::test::write_text(dir / "u.ply", "PLY\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\nx\n");
+  EXPECT_THROW(meshkit::check_ply_layout((dir / "u.ply").string()), meshkit::InputError);
 }
 
 // An ascii PLY face line "3 4 5 7-3 4 7 6": OpenMesh read 7, then -3 as the
