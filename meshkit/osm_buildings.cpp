@@ -197,6 +197,11 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
   } catch (const std::runtime_error& e) {
     // libosmium reports truncated compressed input and PBF errors this way.
     throw InputError(path, "", std::string("cannot read OSM file: ") + e.what());
+  } catch (const std::logic_error& e) {
+    // libosmium's XML parser throws std::invalid_argument for an attribute it
+    // cannot read (visible="x"), std::length_error for an over-long string
+    // (found by tests/fuzz/fuzz_osm_xml).
+    throw InputError(path, "", std::string("malformed OSM data: ") + e.what());
   } catch (const protozero::exception& e) {
     // A PBF block whose protobuf encoding ends early or is malformed: protozero's
     // exceptions derive from std::exception only (found by tests/fuzz/fuzz_osm_pbf).

@@ -119,6 +119,25 @@ TEST(FuzzRegressions, OsmPbfTruncatedProtobufIsAClearError) {
   }
 }
 
+// An OSM XML attribute libosmium cannot read (visible="x"): its parser threw
+// std::invalid_argument, which escaped read_osm_buildings without the file's
+// name (fuzz_osm_xml). Now an InputError naming the file.
+TEST(FuzzRegressions, OsmXmlUnreadableAttributeIsAClearError) {
+  const fs::path dir = scratch_dir("osmvis");
+  const fs::path in = copy_as(corpus("osm_xml", "crash-f5297915be573ac470b28c0409d8f9b997f829a8"), dir, "x.osm");
+  EXPECT_THROW(meshkit::read_osm_buildings(in.string(), kProject), meshkit::InputError);
+  const fs::path small = dir / "visible.osm";
+  raysweep::test::write_text(small, "<?xml version='1.0'?>\n<osm version='0.6'>\n"
+                                    " <node id='1' lat='50' lon='9' visible='maybe'/>\n</osm>\n");
+  try {
+    meshkit::read_osm_buildings(small.string(), kProject);
+    FAIL() << "no error";
+  } catch (const meshkit::InputError& e) {
+    EXPECT_EQ(e.file(), small.string());
+    EXPECT_NE(std::string(e.what()).find("visible"), std::string::npos) << e.what();
+  }
+}
+
 // A PBF string-table entry holding a NUL byte: libosmium copies it into a way's
 // tag list, whose strlen walk then steps over the list's end and reads past its
 // buffer (ASan heap-buffer-overflow under TagList::find_key in fuzz_osm_pbf).
