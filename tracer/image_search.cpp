@@ -65,6 +65,48 @@ void convex_outline(const std::vector<std::array<Vec3, 3>>& tris, const Plane& p
   for (const auto& q : hull) out.push_back(q.p);
 }
 
+// Builds faces.static_tree over static faces order[b, e): median split on
+// the longest axis of the spheres' box, four faces per leaf. Each node's
+// sphere holds its faces' spheres; its tol is their largest.
+void build_sphere_tree(ImageFaces& faces, std::uint32_t b, std::uint32_t e) {
+  Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
+  for (std::uint32_t k = b; k < e; ++k) {
+    const auto& s = faces.spheres[faces.static_order[k]];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = std::min(lo[a], s.centre[a] - s.radius);
+      hi[a] = std::max(hi[a], s.centre[a] + s.radius);
+    }
+  }
+  ImageFaces::SphereNode node;
+  node.sphere.centre = 0.5 * (lo + hi);
+  for (std::uint32_t k = b; k < e; ++k) {
+    const auto f = faces.static_order[k];
+    const auto& s = faces.spheres[f];
+    node.sphere.radius = std::max(node.sphere.radius, norm(s.centre - node.sphere.centre) + s.radius);
+    node.tol = std::max(node.tol, faces.tol[f]);
+  }
+  const std::size_t at = faces.static_tree.size();
+  faces.static_tree.push_back(node);
+  if (e - b <= 4) {
+    faces.static_tree[at].begin = b;
+    faces.static_tree[at].count = e - b;
+    return;
+  }
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+    if (hi[a] - lo[a] > hi[axis] - lo[axis]) axis = a;
+  const std::uint32_t mid = b + (e - b) / 2;
+  // Ties broken by face index: the same tree on every run.
+  std::nth_element(faces.static_order.begin() + b, faces.static_order.begin() + mid, faces.static_order.begin() + e,
+                   [&](std::uint32_t x, std::uint32_t y) {
+                     const double cx = faces.spheres[x].centre[axis], cy = faces.spheres[y].centre[axis];
+                     return cx < cy || (cx == cy && x < y);
+                   });
+  build_sphere_tree(faces, b, mid);
+  faces.static_tree[at].right = static_cast<std::uint32_t>(faces.static_tree.size());
+  build_sphere_tree(faces, mid, e);
+}
+
 }  // namespace
 
 ImageFaces image_faces(const TraceScene& scene) {
@@ -96,6 +138,9 @@ ImageFaces image_faces(const TraceScene& scene) {
     convex_outline(tris, t.planes[f], t.outline);
   }
   t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
+  t.static_order.resize(t.static_count);
+  for (std::uint32_t f = 0; f < t.static_count; ++f) t.static_order[f] = f;
+  if (t.static_count > 0) build_sphere_tree(t, 0, t.static_count);
   return t;
 }
 
@@ -338,6 +383,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   // that point must cross f1.
   const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
   std::vector<Vec3> pyramid;
+  std::vector<std::uint32_t> tree_stack;
   for (std::uint32_t f1 = 0; f1 < ns; ++f1) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
@@ -371,34 +417,57 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
         if (dot(nrm, w) < -(sp.radius + pad)) return true;
       return false;
     };
-    // f2 must reach the source's side of f1.
-    for (std::uint32_t f2 : scene.static_faces_reaching(f1, ds > 0 ? 1 : -1)) {
-      const auto& s2 = faces.spheres[f2];
-      Cone c2;
-      if (narrow && cone_to(i1, s2, c2) && !cones_overlap(beam, c2)) continue;
-      // A reflection point accepted within tol of f1's outline moves the
-      // continuation by up to tol times (distance / |ds|) at f2.
-      if (outside_pyramid(s2, 2 * faces.tol[f1] * (norm(s2.centre - i1) + s2.radius) / std::fabs(ds) +
-                                       faces.tol[f2] + 1e-6 * norm(s2.centre - i1)))
+    // A reflection point accepted within tol of f1's outline moves the
+    // continuation by up to tol times (distance / |ds|) at f2.
+    // (`spread`: a node's faces lie up to its radius farther than its centre.)
+    auto outside_beam = [&](const TraceScene::Sphere& sp, double tol, double spread) {
+      Cone c;
+      if (narrow && cone_to(i1, sp, c) && !cones_overlap(beam, c)) return true;
+      const double dist = norm(sp.centre - i1);
+      return outside_pyramid(sp, 2 * faces.tol[f1] * (dist + sp.radius) / std::fabs(ds) + tol + 1e-6 * (dist + spread));
+    };
+    // The second faces: down the sphere tree, groups on the far side of f1
+    // or outside its beam skipped whole (their faces would each fail the
+    // same tests: a node's sphere and tol bound theirs).
+    tree_stack.clear();
+    tree_stack.push_back(0);
+    while (!tree_stack.empty()) {
+      const auto& node = faces.static_tree[tree_stack.back()];
+      const std::uint32_t at = tree_stack.back();
+      tree_stack.pop_back();
+      const double h = dot(p1.normal, node.sphere.centre) - p1.offset;
+      if ((ds > 0 ? h : -h) + node.sphere.radius <= 0) continue;  // wholly behind f1: no face reaches
+      if (outside_beam(node.sphere, node.tol, node.sphere.radius)) continue;
+      if (node.count == 0) {
+        tree_stack.push_back(node.right);
+        tree_stack.push_back(at + 1);
         continue;
-      const Plane& p2 = faces.planes[f2];
-      const double di = dot(p2.normal, i1) - p2.offset;
-      if (di == 0) continue;
-      const Vec3 i2 = i1 - (2 * di) * p2.normal;
-      ++local.image_sources;
-      local.tests += rx.size();
-      // Relative to the source: I1 is at distance di from f2's plane.
-      const double off2 = p2.offset - dot(p2.normal, xs);
-      if (!mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch)) continue;
-      for (std::size_t r = higher_from; r < rx.size(); ++r) {
-        if (!scratch.hit[r]) continue;
-        const Vec3 xr = receiver(r);
-        const double d = dot(p2.normal, xr) - p2.offset;
-        const Vec3 q2 = crossing(i2, -di, xr, d);
-        if (!on_face(f2, q2)) continue;
-        const double d2 = dot(p1.normal, q2) - p1.offset;
-        if (!(ds * d2 > 0)) continue;
-        if (on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+      }
+      for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
+        const std::uint32_t f2 = faces.static_order[k];
+        // f2 must reach the source's side of f1.
+        if (!scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2)) continue;
+        const auto& s2 = faces.spheres[f2];
+        if (outside_beam(s2, faces.tol[f2], 0)) continue;
+        const Plane& p2 = faces.planes[f2];
+        const double di = dot(p2.normal, i1) - p2.offset;
+        if (di == 0) continue;
+        const Vec3 i2 = i1 - (2 * di) * p2.normal;
+        ++local.image_sources;
+        local.tests += rx.size();
+        // Relative to the source: I1 is at distance di from f2's plane.
+        const double off2 = p2.offset - dot(p2.normal, xs);
+        if (!mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch)) continue;
+        for (std::size_t r = higher_from; r < rx.size(); ++r) {
+          if (!scratch.hit[r]) continue;
+          const Vec3 xr = receiver(r);
+          const double d = dot(p2.normal, xr) - p2.offset;
+          const Vec3 q2 = crossing(i2, -di, xr, d);
+          if (!on_face(f2, q2)) continue;
+          const double d2 = dot(p1.normal, q2) - p1.offset;
+          if (!(ds * d2 > 0)) continue;
+          if (on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+        }
       }
     }
   }

@@ -59,6 +59,17 @@ struct ImageFaces {
   // face): the beam a face reflects is the pyramid from the image through it.
   std::vector<std::uint32_t> outline_begin;  // static faces + 1
   std::vector<Vec3> outline;
+  // A bounding-sphere tree over the static faces (depth-first; a node's
+  // left child follows it): the order-2 search culls whole groups of second
+  // faces against the first face's beam instead of testing each.
+  struct SphereNode {
+    TraceScene::Sphere sphere;
+    double tol = 0;               // the largest on-face tolerance below
+    std::uint32_t right = 0;      // inner node: its right child
+    std::uint32_t begin = 0, count = 0;  // leaf (count > 0): static_order[begin, begin + count)
+  };
+  std::vector<SphereNode> static_tree;
+  std::vector<std::uint32_t> static_order;
 };
 // True when the image search enumerates every sequence of this kind
 // (order 1; order 2 of static faces, or of the ground and a vehicle).

@@ -135,7 +135,10 @@ struct TraceScene::Impl {
   std::vector<bool> slot_enabled;
   std::vector<double> cos_yaw, sin_yaw;
   std::vector<Edge> edges;
-  std::vector<std::vector<std::uint32_t>> reaching;  // [2 f + (side < 0)]
+  // Bit g of row 2 f + (side < 0): static face g reaches that side of f
+  // (a bitset: a list per face and side grows as faces squared in ints).
+  std::vector<std::uint64_t> reaching;
+  std::size_t reaching_words = 0;
 
   const Shape& shape_of(const FaceRef& f, const std::vector<VehiclePose>& vehicles) const {
     return f.instance == 0 ? world : *models[vehicles[f.instance - 1].model];
@@ -472,7 +475,8 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
       std::sort(v.begin(), v.end());
       v.erase(std::unique(v.begin(), v.end()), v.end());
     }
-    d.reaching.assign(2 * nf, {});
+    d.reaching_words = (nf + 63) / 64;
+    d.reaching.assign(2 * nf * d.reaching_words, 0);
     for (std::uint32_t f = 0; f < nf; ++f) {
       const Plane& p = d.world.face_plane[f];
       const double eps = 1e-9 + d.world.face_flatness[f];
@@ -484,8 +488,9 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
           front = front || h > eps;
           back = back || h < -eps;
         }
-        if (front) d.reaching[2 * f].push_back(g);
-        if (back) d.reaching[2 * f + 1].push_back(g);
+        const std::uint64_t bit = std::uint64_t{1} << (g % 64);
+        if (front) d.reaching[(2 * std::size_t{f}) * d.reaching_words + g / 64] |= bit;
+        if (back) d.reaching[(2 * std::size_t{f} + 1) * d.reaching_words + g / 64] |= bit;
       }
     }
   }
@@ -744,8 +749,10 @@ TraceScene::Sphere TraceScene::face_sphere(const FaceRef& f) const {
   return Sphere{Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + vehicles_[v].position, b.radius};
 }
 
-const std::vector<std::uint32_t>& TraceScene::static_faces_reaching(std::uint32_t f, int side) const {
-  return impl_->reaching.at(2 * std::size_t{f} + (side > 0 ? 0 : 1));
+bool TraceScene::static_face_reaches(std::uint32_t f, int side, std::uint32_t g) const {
+  const auto& d = *impl_;
+  const std::size_t row = 2 * std::size_t{f} + (side > 0 ? 0 : 1);
+  return (d.reaching[row * d.reaching_words + g / 64] >> (g % 64)) & 1u;
 }
 
 void TraceScene::face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3>>& out) const {
