@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 
 namespace raysweep::tracer {
 
@@ -192,29 +193,42 @@ struct Receivers {
   std::size_t size() const { return x.size(); }
 };
 
+// The kernel of mark_crossings on raw arrays. Branch-free, so it
+// vectorises; x86-64's baseline (SSE2) has no packed double-to-byte
+// conversion, so an AVX2 clone is chosen at load time where the CPU has it.
+// Without FMA contraction the clones compute bitwise the same flags.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+unsigned mark_crossings_kernel(const double* __restrict x, const double* __restrict y, const double* __restrict z,
+                               unsigned char* __restrict hit, std::size_t begin, std::size_t n, const double* nrm,
+                               double plane_offset_rel, double ds, const double* img, const double* c, double r2) {
+  const double nx = nrm[0], ny = nrm[1], nz = nrm[2];
+  const double ix = img[0], iy = img[1], iz = img[2];
+  const double cx = c[0], cy = c[1], cz = c[2];
+  std::int64_t any = 0;
+  for (std::size_t r = begin; r < n; ++r) {
+    const double d = nx * x[r] + ny * y[r] + nz * z[r] - plane_offset_rel;
+    const double den = ds + d;  // ds and d share their sign when valid
+    const double s = ds / (den + static_cast<double>(den == 0));
+    const double px = ix + s * (x[r] - ix) - cx, py = iy + s * (y[r] - iy) - cy, pz = iz + s * (z[r] - iz) - cz;
+    const std::int64_t in =
+        static_cast<std::int64_t>(ds * d > 0) & static_cast<std::int64_t>(px * px + py * py + pz * pz <= r2);
+    hit[r] = static_cast<unsigned char>(in);
+    any |= in;
+  }
+  return any != 0;
+}
+
 // Marks the receivers r whose line from image `img` (signed distance -ds
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
 // face". Returns whether any is marked.
 bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, double plane_offset_rel, double ds, const Vec3& img,
                     const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol, Receivers& scratch) {
-  const double nx = pl.normal[0], ny = pl.normal[1], nz = pl.normal[2];
-  const double ix = img[0], iy = img[1], iz = img[2];
-  const double cx = centre_rel[0], cy = centre_rel[1], cz = centre_rel[2];
   const double r2 = (sphere.radius + tol) * (sphere.radius + tol);
-  const std::size_t n = rx.size();
-  unsigned any = 0;
-  for (std::size_t r = begin; r < n; ++r) {
-    const double d = nx * rx.x[r] + ny * rx.y[r] + nz * rx.z[r] - plane_offset_rel;
-    const double den = ds + d;  // ds and d share their sign when valid
-    const double s = ds / (den != 0 ? den : 1.0);
-    const double px = ix + s * (rx.x[r] - ix) - cx, py = iy + s * (rx.y[r] - iy) - cy,
-                 pz = iz + s * (rx.z[r] - iz) - cz;
-    const unsigned in = (ds * d > 0) & (px * px + py * py + pz * pz <= r2);
-    scratch.hit[r] = static_cast<unsigned char>(in);
-    any |= in;
-  }
-  return any != 0;
+  return mark_crossings_kernel(rx.x.data(), rx.y.data(), rx.z.data(), scratch.hit.data(), begin, rx.size(),
+                               pl.normal.data(), plane_offset_rel, ds, img.data(), centre_rel.data(), r2) != 0;
 }
 
 }  // namespace
