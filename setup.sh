@@ -30,6 +30,9 @@ if [ ${#missing[@]} -gt 0 ]; then
 fi
 
 export SUMO_HOME=/usr/share/sumo
+# ccache keys relative to the checkout, so that a clone in another folder (CI)
+# reuses what this one compiled (debug builds would otherwise hash the folder).
+export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1
 BUILD_TYPE=${RAYSWEEP_BUILD_TYPE:-Release}
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE="$BUILD_TYPE" >/dev/null
 cmake --build build -j"$(nproc)"

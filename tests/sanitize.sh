@@ -9,6 +9,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export SUMO_HOME=/usr/share/sumo
+export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1  # see setup.sh
 cmake -S . -B build-asan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" \
   -DRAYSWEEP_SANITIZE=address,undefined -DRAYSWEEP_BUILD_BENCH=OFF -DRAYSWEEP_BUILD_NS3=OFF >/dev/null
 cmake --build build-asan -j"$(nproc)"

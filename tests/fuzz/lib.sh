@@ -31,6 +31,7 @@ fuzz_toolchain_ok() {
 # Configures and builds build-fuzz/ (incremental): the libraries with
 # coverage + ASan + UBSan, the harnesses with libFuzzer's main.
 fuzz_build() {
+  export CCACHE_BASEDIR="$PWD" CCACHE_NOHASHDIR=1  # see setup.sh
   CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DRAYSWEEP_FUZZ=ON >/dev/null
   cmake --build build-fuzz --target fuzzers -j"$(nproc)"
