@@ -8,6 +8,9 @@
 #
 # FUZZ_NO_BUILD=1 skips the (incremental) build of build-fuzz/. FUZZ_TABLE=FILE
 # writes the table there instead (two runs side by side, one per core).
+# FUZZ_TIMEOUT=S: an input running longer than S seconds is a hang (default
+# 10). libFuzzer's clock is wall time, so a run sharing a busy machine (or
+# under nice) needs more, or it reports starvation as hangs.
 # Corpora grow in fuzz-out/corpus/<target>/ (seeded from tests/fuzz/corpus/,
 # kept between runs); logs in fuzz-out/logs/, findings (crash-, leak-,
 # timeout-, oom- inputs) in fuzz-out/artifacts/<target>/. The table is also
@@ -40,7 +43,7 @@ for t in "${TARGETS[@]}"; do
   start=$(date +%s)
   set +e
   build-fuzz/tests/fuzz/fuzz_"$t" -max_total_time="$SECS" ${FUZZ_RUNS:+-runs=$FUZZ_RUNS} -rss_limit_mb=2048 \
-    -timeout=10 -print_final_stats=1 -artifact_prefix="$art/" ${dict:+-dict=$dict} \
+    -timeout="${FUZZ_TIMEOUT:-10}" -print_final_stats=1 -artifact_prefix="$art/" ${dict:+-dict=$dict} \
     "$corpus" "tests/fuzz/corpus/$t" >"$log" 2>&1
   rc=$?
   set -e

@@ -385,6 +385,9 @@ const Table<TraceSettings>& tracer_table() {
           "reflections from the end that reaches it); false: the lower end's rays alone");
     t.key("vehicle_multi_bounce", boolean(), FIELD(tracer.vehicle_multi_bounce), "",
           "image search: two and three reflections on one vehicle from a per-model table of multi-bounce sequences");
+    t.key("ground_order3", boolean(), FIELD(tracer.ground_order3), "",
+          "image search: three reflections among static faces with one on the ground (wall, ground, wall; the "
+          "ground first or last)");
     t.key("diffraction", boolean(), FIELD(tracer.diffraction), "", "first-order UTD edge diffraction on the static scene");
     t.key("vehicle_diffraction", boolean(), FIELD(tracer.vehicle_diffraction), "",
           "vehicles in the first Fresnel zone: P.526 knife-edge loss on the direct path");

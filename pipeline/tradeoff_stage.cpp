@@ -372,6 +372,12 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.vehicle_multi_bounce = !base.vehicle_multi_bounce;
       grid.push_back(s);
     }
+    // Its order-3 static paths through the ground.
+    if (base.candidates == tracer::CandidateSearch::image && base_depth >= 3) {
+      s = variant(base.ground_order3 ? "-ground order 3" : "+ground order 3");
+      s.tracer.ground_order3 = !base.ground_order3;
+      grid.push_back(s);
+    }
     // What the exact image search costs and buys over sampling alone.
     if (base.candidates != tracer::CandidateSearch::exhaustive) {
       const bool image = base.candidates == tracer::CandidateSearch::image;
@@ -632,6 +638,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                     {"path_threshold_db", s.tracer.path_threshold_db},
                     {"diffuse_both_ends", s.tracer.diffuse_both_ends},
                     {"vehicle_multi_bounce", s.tracer.vehicle_multi_bounce},
+                    {"ground_order3", s.tracer.ground_order3},
                     {"lod", s.lod},
                     {"static_simplification", s.simplify_m},
                     {"static_triangles", scenes.at(s.simplify_m).stats.triangles_after},

@@ -3,6 +3,11 @@
 // provenance, the vehicle library, and bad input.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <stdexcept>
+#include <vector>
+
 #include <nlohmann/json.hpp>
 #include <unistd.h>
 
@@ -169,18 +174,37 @@ TEST(CliTrace, DiffuseByTilesIsRecordedAndReciprocal) {
   const auto& cfg = runs[0]["provenance"]["config"]["tracer"];
   EXPECT_EQ(cfg["diffuse_integration"], "tiles");
   EXPECT_EQ(cfg["diffuse_tile_m"], 2.0);
-  // Pair a-b is (0, 1) in one run and (1, 2) in the other: the same gain.
-  auto gain = [](const json& j, const std::string& x, const std::string& y) {
+  // Pair a-b is (0, 1) in one run and (1, 2) in the other, so each pair is
+  // computed from the other end: the tiles' diffuse records are bitwise the
+  // same (their integration is symmetric by construction); specular and
+  // diffraction paths are the same paths, equal to rounding (1e-15).
+  auto pair = [](const json& j, const std::string& x, const std::string& y) -> const json& {
     for (const auto& p : j["pairs"]) {
       const std::string tx = p["tx"], rx = p["rx"];
-      if ((tx == x && rx == y) || (tx == y && rx == x)) return p["path_gain_incoherent_db"].get<double>();
+      if ((tx == x && rx == y) || (tx == y && rx == x)) return p;
     }
-    return 0.0;
+    throw std::runtime_error("no pair " + x + "-" + y);
   };
+  auto diffuse = [](const json& p) {
+    std::vector<std::array<double, 3>> d;
+    for (const auto& path : p["paths"])
+      if (path["interactions"].size() == 1 && path["interactions"][0]["type"] == "diffuse")
+        d.push_back({path["tau_s"].get<double>(), path["a_re"].get<double>(), path["a_im"].get<double>()});
+    std::sort(d.begin(), d.end());
+    return d;
+  };
+  std::size_t diffuse_records = 0;
   for (auto [x, y] : {std::pair{"a", "b"}, std::pair{"a", "c"}, std::pair{"b", "c"}}) {
-    EXPECT_LT(gain(runs[0], x, y), -40) << x << "-" << y;
-    EXPECT_EQ(gain(runs[0], x, y), gain(runs[1], x, y)) << x << "-" << y;
+    const json &p0 = pair(runs[0], x, y), &p1 = pair(runs[1], x, y);
+    EXPECT_LT(p0["path_gain_incoherent_db"].get<double>(), -40) << x << "-" << y;
+    EXPECT_NEAR(p0["path_gain_incoherent_db"].get<double>(), p1["path_gain_incoherent_db"].get<double>(), 1e-9)
+        << x << "-" << y;
+    EXPECT_EQ(p0["paths"].size(), p1["paths"].size()) << x << "-" << y;
+    const auto d0 = diffuse(p0);
+    EXPECT_EQ(d0, diffuse(p1)) << x << "-" << y;
+    diffuse_records += d0.size();
   }
+  EXPECT_GT(diffuse_records, 0u);
 }
 
 TEST(CliTrace, FrequencyResponseOnOfdmGrids) {

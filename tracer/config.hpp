@@ -80,6 +80,10 @@ struct TracerConfig {
   // multi-bounce sequences (TraceScene::vehicle_bounce_sequences). Off:
   // those come from shoot and bounce alone.
   bool vehicle_multi_bounce = true;
+  // Image search: three reflections among static faces with one on the
+  // ground (wall, ground, wall; the ground first or last), exactly. Off:
+  // those come from shoot and bounce alone.
+  bool ground_order3 = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the
   // node that looks (visibility) or from the nearer end (integration;

@@ -235,7 +235,8 @@ bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, dou
 
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce) {
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
+                      bool ground_order3) {
   if (max_order < 1 || receivers.empty()) return;
   ImageSearchStats local;
   const Vec3 xs = nodes[src].position;
@@ -395,9 +396,45 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   // Order 2 over static faces: image I1 of the source in f1, then the image
   // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
   // that point must cross f1.
+  //
+  // Order 3 through the ground (a static face, the ground and another, in
+  // any order), which shoot and bounce misses most of (a wall's beam bent
+  // down by the ground passes the receivers' spheres at grazing angles):
+  // - the ground last: the receiver's image in the ground plane sees I2
+  //   through f2, and the line from f2 to the receiver crosses the ground
+  //   face. The mirrored receivers join the same vectorised pass, towards
+  //   every receiver, so that the other end's search gives the ground first;
+  // - the ground between f1 and f2: the beam f1 reflects, mirrored in the
+  //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
+  //   beam does, and I2 is the image of I1' in f2.
   const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
-  std::vector<Vec3> pyramid;
+  const bool ground3 = ground_order3 && max_order >= 3 && ns > 0;
+  Receivers mirrored;  // every receiver's image in each ground face, relative to the source
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
+  for (std::uint32_t g : ground3 ? faces.ground : std::vector<std::uint32_t>{}) {
+    const Plane& pg = faces.planes[g];
+    for (std::size_t r = 0; r < rx.size(); ++r) {
+      const Vec3 xr = receiver(r);
+      const double d = dot(pg.normal, xr) - pg.offset;
+      if (d == 0) continue;  // on the ground plane: no image
+      const Vec3 m = xr - (2 * d) * pg.normal - xs;
+      mirrored.x.push_back(m[0]);
+      mirrored.y.push_back(m[1]);
+      mirrored.z.push_back(m[2]);
+      mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+    }
+  }
+  mirrored.hit.resize(mirrored.size());
+  std::vector<Vec3> pyramid, pyramid_g;
   std::vector<std::uint32_t> tree_stack;
+  // The beam of f1's reflections: apex (I1, or its image in the ground),
+  // the cone through f1's sphere and the pyramid through its outline.
+  struct Beam {
+    Vec3 apex;
+    Cone cone;
+    bool narrow;
+    const std::vector<Vec3>* pyramid;
+  };
   for (std::uint32_t f1 = 0; f1 < ns; ++f1) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
@@ -405,8 +442,8 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     const Vec3 i1 = xs - (2 * ds) * p1.normal;
     // Every continuation of a path reflected by f1 lies in the cone from I1
     // through f1 (on the source's side of f1).
-    Cone beam;
-    const bool narrow = cone_to(i1, faces.spheres[f1], beam);
+    Beam beam{i1, {}, false, &pyramid};
+    beam.narrow = cone_to(i1, faces.spheres[f1], beam.cone);
     // Tighter: the pyramid from I1 through f1's convex outline, one plane
     // per outline edge (inward normals), padded by the on-face tolerance.
     pyramid.clear();
@@ -425,64 +462,135 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
         pyramid.push_back(nrm);
       }
     }
-    auto outside_pyramid = [&](const TraceScene::Sphere& sp, double pad) {
-      const Vec3 w = sp.centre - i1;
-      for (const auto& nrm : pyramid)
-        if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      return false;
-    };
     // A reflection point accepted within tol of f1's outline moves the
     // continuation by up to tol times (distance / |ds|) at f2.
     // (`spread`: a node's faces lie up to its radius farther than its centre.)
-    auto outside_beam = [&](const TraceScene::Sphere& sp, double tol, double spread) {
+    auto outside_beam = [&](const Beam& b, const TraceScene::Sphere& sp, double tol, double spread) {
       Cone c;
-      if (narrow && cone_to(i1, sp, c) && !cones_overlap(beam, c)) return true;
-      const double dist = norm(sp.centre - i1);
-      return outside_pyramid(sp, 2 * faces.tol[f1] * (dist + sp.radius) / std::fabs(ds) + tol + 1e-6 * (dist + spread));
+      if (b.narrow && cone_to(b.apex, sp, c) && !cones_overlap(b.cone, c)) return true;
+      const Vec3 w = sp.centre - b.apex;
+      const double dist = norm(w);
+      const double pad = 2 * faces.tol[f1] * (dist + sp.radius) / std::fabs(ds) + tol + 1e-6 * (dist + spread);
+      for (const auto& nrm : *b.pyramid)
+        if (dot(nrm, w) < -(sp.radius + pad)) return true;
+      return false;
     };
-    // The second faces: down the sphere tree, groups on the far side of f1
-    // or outside its beam skipped whole (their faces would each fail the
-    // same tests: a node's sphere and tol bound theirs).
-    tree_stack.clear();
-    tree_stack.push_back(0);
-    while (!tree_stack.empty()) {
-      const auto& node = faces.static_tree[tree_stack.back()];
-      const std::uint32_t at = tree_stack.back();
-      tree_stack.pop_back();
-      const double h = dot(p1.normal, node.sphere.centre) - p1.offset;
-      if ((ds > 0 ? h : -h) + node.sphere.radius <= 0) continue;  // wholly behind f1: no face reaches
-      if (outside_beam(node.sphere, node.tol, node.sphere.radius)) continue;
-      if (node.count == 0) {
-        tree_stack.push_back(node.right);
-        tree_stack.push_back(at + 1);
-        continue;
+    // The second faces in beam b: down the sphere tree, groups wholly on the
+    // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
+    // it on) or outside the beam skipped whole (their faces would each fail
+    // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
+    // the rest.
+    auto walk_beam = [&](const Beam& b, const Plane& plane, double side, std::uint32_t from_face, auto&& leaf) {
+      tree_stack.clear();
+      tree_stack.push_back(0);
+      while (!tree_stack.empty()) {
+        const auto& node = faces.static_tree[tree_stack.back()];
+        const std::uint32_t at = tree_stack.back();
+        tree_stack.pop_back();
+        const double h = dot(plane.normal, node.sphere.centre) - plane.offset;
+        if ((side > 0 ? h : -h) + node.sphere.radius <= 0) continue;  // wholly behind: no face reaches
+        if (outside_beam(b, node.sphere, node.tol, node.sphere.radius)) continue;
+        if (node.count == 0) {
+          tree_stack.push_back(node.right);
+          tree_stack.push_back(at + 1);
+          continue;
+        }
+        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
+          const std::uint32_t f2 = faces.static_order[k];
+          // f2 must reach the side the beam leaves from_face on.
+          if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) continue;
+          if (outside_beam(b, faces.spheres[f2], faces.tol[f2], 0)) continue;
+          leaf(f2);
+        }
       }
-      for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
-        const std::uint32_t f2 = faces.static_order[k];
-        // f2 must reach the source's side of f1.
-        if (!scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2)) continue;
+    };
+    // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
+    walk_beam(beam, p1, ds, f1, [&](std::uint32_t f2) {
+      const auto& s2 = faces.spheres[f2];
+      const Plane& p2 = faces.planes[f2];
+      const double di = dot(p2.normal, i1) - p2.offset;
+      if (di == 0) return;
+      const Vec3 i2 = i1 - (2 * di) * p2.normal;
+      ++local.image_sources;
+      // Relative to the source: I1 is at distance di from f2's plane.
+      const double off2 = p2.offset - dot(p2.normal, xs);
+      // q2 on f2 towards `target`, then f1 on the way back from q2.
+      auto back_to_f1 = [&](const Vec3& target, Vec3& q2) {
+        const double d = dot(p2.normal, target) - p2.offset;
+        q2 = crossing(i2, -di, target, d);
+        if (!on_face(f2, q2)) return false;
+        const double d2 = dot(p1.normal, q2) - p1.offset;
+        return ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2));
+      };
+      local.tests += rx.size();
+      if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
+        for (std::size_t r = higher_from; r < rx.size(); ++r) {
+          Vec3 q2;
+          if (scratch.hit[r] && back_to_f1(receiver(r), q2))
+            out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+        }
+      if (mirrored.size() == 0) return;
+      local.tests += mirrored.size();
+      if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored))
+        return;
+      for (std::size_t m = 0; m < mirrored.size(); ++m) {
+        const auto [g, r] = mirrored_of[m];
+        if (!mirrored.hit[m] || g == f2) continue;
+        // Ground, f2, ground: after the first ground reflection the path
+        // leaves the ground's plane, and a face perpendicular to it (a
+        // wall) keeps that component: it never comes back.
+        if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
+        const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
+        Vec3 q2;
+        if (!back_to_f1(xm, q2)) continue;
+        // The last leg, from q2 down to the ground and up to the receiver.
+        const Plane& pg = faces.planes[g];
+        const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
+        if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
+          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
+      }
+    });
+    // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
+    for (std::uint32_t g : ground3 ? faces.ground : std::vector<std::uint32_t>{}) {
+      if (g == f1 || !scene.static_face_reaches(f1, ds > 0 ? 1 : -1, g)) continue;
+      if (outside_beam(beam, faces.spheres[g], faces.tol[g], 0)) continue;
+      const Plane& pg = faces.planes[g];
+      const double dg = dot(pg.normal, i1) - pg.offset;
+      if (dg == 0) continue;
+      const Vec3 i1g = i1 - (2 * dg) * pg.normal;
+      auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
+      pyramid_g.clear();
+      for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
+      Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
+      bg.cone.axis = mirror(beam.cone.axis);
+      // After the ground the path runs on I1's side of it (q2 with I1).
+      walk_beam(bg, pg, dg, g, [&](std::uint32_t f2) {
+        if (f2 == g) return;
         const auto& s2 = faces.spheres[f2];
-        if (outside_beam(s2, faces.tol[f2], 0)) continue;
         const Plane& p2 = faces.planes[f2];
-        const double di = dot(p2.normal, i1) - p2.offset;
-        if (di == 0) continue;
-        const Vec3 i2 = i1 - (2 * di) * p2.normal;
+        const double di = dot(p2.normal, i1g) - p2.offset;
+        if (di == 0) return;
+        const Vec3 i2 = i1g - (2 * di) * p2.normal;
         ++local.image_sources;
-        local.tests += rx.size();
-        // Relative to the source: I1 is at distance di from f2's plane.
-        const double off2 = p2.offset - dot(p2.normal, xs);
-        if (!mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch)) continue;
+        local.tests += rx.size() - higher_from;
+        if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
+                            faces.tol[f2], scratch))
+          return;
         for (std::size_t r = higher_from; r < rx.size(); ++r) {
           if (!scratch.hit[r]) continue;
           const Vec3 xr = receiver(r);
           const double d = dot(p2.normal, xr) - p2.offset;
           const Vec3 q2 = crossing(i2, -di, xr, d);
           if (!on_face(f2, q2)) continue;
-          const double d2 = dot(p1.normal, q2) - p1.offset;
-          if (!(ds * d2 > 0)) continue;
-          if (on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+          const double dq = dot(pg.normal, q2) - pg.offset;
+          if (!(dg * dq > 0)) continue;
+          const Vec3 qg = crossing(i1g, -dg, q2, dq);
+          if (!on_face(g, qg)) continue;
+          const double d1 = dot(p1.normal, qg) - p1.offset;
+          if (ds * d1 > 0 && on_face(f1, crossing(i1, -ds, qg, d1)))
+            out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
         }
-      }
+      });
     }
   }
   if (stats) {

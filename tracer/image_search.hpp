@@ -76,16 +76,19 @@ struct ImageFaces {
 bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence);
 ImageFaces image_faces(const TraceScene& scene);
 
-// Face sequences of order 1..max_order (at most 3: only on one vehicle) from node `src` to each
-// node in `receivers` (sorted; lower and higher indices) whose reflection
-// points lie on their faces. Sequences that are their own reverse's
-// counterpart (order 1, static-static) are searched towards higher receivers
-// only; ground-vehicle sequences towards all, so that the other end's search
-// yields vehicle-ground. Deterministic: the output depends only on the scene
+// Face sequences of order 1..max_order (at most 3: on one vehicle, or
+// static faces with one on the ground) from node `src` to each node in
+// `receivers` (sorted; lower and higher indices) whose reflection points lie
+// on their faces. Sequences that are their own reverse's counterpart (order
+// 1, static-static, static-ground-static) are searched towards higher
+// receivers only; ground-vehicle and static-static-ground sequences towards
+// all, so that the other end's search yields vehicle-ground and
+// ground-static-static. Deterministic: the output depends only on the scene
 // and the nodes.
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true);
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true,
+                      bool ground_order3 = true);
 
 // A static face and a vehicle the shoot-and-bounce rays of one source reach
 // in that order (a ray reflected by the face passes within the vehicle's

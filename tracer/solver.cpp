@@ -897,7 +897,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
       if (partners[i].empty()) return;
       image_candidates(scene, faces, nodes, i, partners[i], std::min(cfg.max_depth, 3), found[i], &istats[i],
-                       cfg.vehicle_multi_bounce);
+                       cfg.vehicle_multi_bounce, cfg.ground_order3);
     });
     for (const auto& st : istats) {
       snap.stats.image_sources += st.image_sources;
