@@ -117,6 +117,16 @@ Ns3TableBuildStats build_ns3_table(const std::string& dataset, const std::filesy
     }
   }
 
+  // Two frames at one time pass the channel reader (the SINR stage reads
+  // the later one), but a table's frames must advance: found by
+  // tests/fuzz/fuzz_dataset_h5, whose writer refused them naming its own
+  // output. Name the dataset's row instead.
+  for (std::size_t f = 1; f < trace.frames(); ++f)
+    if (!(trace.time(f) > trace.time(f - 1)))
+      throw meshkit::InputError(dataset, "/frames/time_s",
+                                "row " + std::to_string(f) + ": time " + std::to_string(trace.time(f)) +
+                                    " s is not after the previous frame's");
+
   Ns3TableWriter writer(out, header, bands);
   std::vector<NodeState> states;
   std::vector<Ns3Pair> pairs;

@@ -424,6 +424,30 @@ TEST(FuzzRegressions, ChannelDatasetWithBadBandwidthNamesTheAttribute) {
             std::string::npos);
 }
 
+// Two frames at the same time (a fuzzed edit of /frames/time_s): the channel
+// reader takes them, and `raysweep ns3-table` failed in the table writer with
+// an invalid_argument naming its own output. Now the dataset's row is named.
+TEST(FuzzRegressions, Ns3TableFromFramesAtOneTimeNamesTheDatasetRow) {
+  const fs::path dir = scratch_dir("frametime");
+  const fs::path file = dir / "channels.h5";
+  raysweep::fuzz::write_channel_base(file.string());
+  EXPECT_EQ(error_of([&] { generators::build_ns3_table(file.string(), dir / "t.h5", {}, 2); }), "no error");
+  {
+    raysweep::test::H5 f{H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), H5Fclose};
+    raysweep::test::H5 d{H5Dopen2(f.id, "/frames/time_s", H5P_DEFAULT), H5Dclose};
+    ASSERT_GE(d.id, 0);
+    const double t[2] = {0, 0};
+    raysweep::test::H5 file_space{H5Dget_space(d.id), H5Sclose};
+    const hsize_t start = 0, count = 2;
+    ASSERT_GE(H5Sselect_hyperslab(file_space.id, H5S_SELECT_SET, &start, nullptr, &count, nullptr), 0);
+    raysweep::test::H5 mem{H5Screate_simple(1, &count, nullptr), H5Sclose};
+    ASSERT_GE(H5Dwrite(d.id, H5T_NATIVE_DOUBLE, mem.id, file_space.id, H5P_DEFAULT, t), 0);
+  }
+  EXPECT_TRUE(StartsWith(error_of([&] { generators::build_ns3_table(file.string(), dir / "t2.h5", {}, 2); }),
+                         file.string() + ": /frames/time_s: row 1: time 0.000000 s is not after the previous frame's"));
+  EXPECT_FALSE(fs::exists(dir / "t2.h5"));
+}
+
 // A string attribute holding an array of strings: the readers passed a buffer
 // for one string to H5Aread, which wrote them all (ASan: stack- and
 // heap-buffer-overflow in fuzz_sinr_h5 and fuzz_ns3_table_h5). Now "not a
