@@ -195,10 +195,19 @@ std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name);
 template <class T>
 std::vector<T> read_rows(hid_t dset, const std::string& name, hid_t mtype, hsize_t start, hsize_t rows,
                          hsize_t width = 1) {
-  std::vector<T> out(static_cast<std::size_t>(rows * width));
-  if (rows == 0) return out;
+  if (rows == 0) return std::vector<T>();
   const auto dims = dataset_dims(dset, name);
   const int rank = static_cast<int>(dims.size());
+  // The selection must lie in the dataset before anything is allocated: a
+  // row count or width taken from another (bad) dataset or attribute asked
+  // for 219 GB here (tests/fuzz/fuzz_dataset_h5: /cfr's subcarriers).
+  if (rank >= 1 && (start > dims[0] || rows > dims[0] - start))
+    read_fail(name, "rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1) + " beyond its " +
+                        std::to_string(dims[0]) + " rows");
+  if ((rank == 1 && width != 1) || (rank == 2 && width > dims[1]))
+    read_fail(name, std::to_string(width) + " values a row asked of a dataset of " +
+                        (rank == 2 ? std::to_string(dims[1]) : std::string("1")) + " a row");
+  std::vector<T> out(static_cast<std::size_t>(rows * width));
   Handle fspace(H5Dget_space(dset), H5Sclose);
   const hsize_t s[2] = {start, 0};
   const hsize_t c[2] = {rows, width};

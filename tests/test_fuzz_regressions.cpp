@@ -12,6 +12,7 @@
 #include <string>
 
 #include "fuzz/h5_bases.hpp"
+#include "generators/dataset_reader.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "hdf5_test_util.hpp"
@@ -446,6 +447,23 @@ TEST(FuzzRegressions, Ns3TableFromFramesAtOneTimeNamesTheDatasetRow) {
   EXPECT_TRUE(StartsWith(error_of([&] { generators::build_ns3_table(file.string(), dir / "t2.h5", {}, 2); }),
                          file.string() + ": /frames/time_s: row 1: time 0.000000 s is not after the previous frame's"));
   EXPECT_FALSE(fs::exists(dir / "t2.h5"));
+}
+
+// A /cfr subcarrier count far beyond the /cfr/h dataset's width (a fuzzed
+// attribute): the reader allocated rows x subcarriers before HDF5 checked the
+// selection (219 GB, ASan out-of-memory in fuzz_dataset_h5). Now every
+// column read checks its selection against the dataset first, naming it.
+TEST(FuzzRegressions, CfrSubcarrierCountBeyondTheDatasetIsAClearError) {
+  const fs::path dir = scratch_dir("cfrwidth");
+  const fs::path file = dir / "channels.h5";
+  raysweep::fuzz::write_channel_base(file.string());
+  set_f64_attr(file, "/cfr", "subcarriers", 4e9);
+  const std::string error = error_of([&] {
+    generators::DatasetReader r(file.string());
+    r.frames(0, r.frame_count());
+  });
+  EXPECT_TRUE(StartsWith(error, file.string() + ": /cfr/h")) << error;
+  EXPECT_NE(error.find("4000000000 values a row asked of a dataset of"), std::string::npos) << error;
 }
 
 // A string attribute holding an array of strings: the readers passed a buffer
