@@ -504,14 +504,23 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
         }
       }
     };
+    // The image I2 of `apex` in f2 (di: the apex's distance from f2's
+    // plane); false when the apex lies on it.
+    auto image_in = [&](std::uint32_t f2, const Vec3& apex, double& di, Vec3& i2) {
+      const Plane& p2 = faces.planes[f2];
+      di = dot(p2.normal, apex) - p2.offset;
+      if (di == 0) return false;
+      i2 = apex - (2 * di) * p2.normal;
+      ++local.image_sources;
+      return true;
+    };
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
     walk_beam(beam, p1, ds, f1, [&](std::uint32_t f2) {
       const auto& s2 = faces.spheres[f2];
       const Plane& p2 = faces.planes[f2];
-      const double di = dot(p2.normal, i1) - p2.offset;
-      if (di == 0) return;
-      const Vec3 i2 = i1 - (2 * di) * p2.normal;
-      ++local.image_sources;
+      double di;
+      Vec3 i2;
+      if (!image_in(f2, i1, di, i2)) return;
       // Relative to the source: I1 is at distance di from f2's plane.
       const double off2 = p2.offset - dot(p2.normal, xs);
       // q2 on f2 towards `target`, then f1 on the way back from q2.
@@ -568,10 +577,9 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
         if (f2 == g) return;
         const auto& s2 = faces.spheres[f2];
         const Plane& p2 = faces.planes[f2];
-        const double di = dot(p2.normal, i1g) - p2.offset;
-        if (di == 0) return;
-        const Vec3 i2 = i1g - (2 * di) * p2.normal;
-        ++local.image_sources;
+        double di;
+        Vec3 i2;
+        if (!image_in(f2, i1g, di, i2)) return;
         local.tests += rx.size() - higher_from;
         if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
                             faces.tol[f2], scratch))
