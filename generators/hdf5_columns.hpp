@@ -201,7 +201,8 @@ std::vector<T> read_rows(hid_t dset, const std::string& name, hid_t mtype, hsize
   // The selection must lie in the dataset before anything is allocated: a
   // row count or width taken from another (bad) dataset or attribute asked
   // for 219 GB here (tests/fuzz/fuzz_dataset_h5: /cfr's subcarriers).
-  if (rank >= 1 && (start > dims[0] || rows > dims[0] - start))
+  if (rank < 1 || rank > 2) read_fail(name, "not a one- or two-dimensional dataset");
+  if (start > dims[0] || rows > dims[0] - start)
     read_fail(name, "rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1) + " beyond its " +
                         std::to_string(dims[0]) + " rows");
   if ((rank == 1 && width != 1) || (rank == 2 && width > dims[1]))
@@ -211,8 +212,7 @@ std::vector<T> read_rows(hid_t dset, const std::string& name, hid_t mtype, hsize
   Handle fspace(H5Dget_space(dset), H5Sclose);
   const hsize_t s[2] = {start, 0};
   const hsize_t c[2] = {rows, width};
-  if (!fspace.valid() || rank < 1 || rank > 2 ||
-      H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr) < 0)
+  if (!fspace.valid() || H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr) < 0)
     read_fail(name, "cannot select rows");
   Handle mspace(H5Screate_simple(rank, c, nullptr), H5Sclose);
   if (!mspace.valid() || H5Dread(dset, mtype, mspace.get(), fspace.get(), H5P_DEFAULT, out.data()) < 0)

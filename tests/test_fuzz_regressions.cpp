@@ -464,6 +464,15 @@ TEST(FuzzRegressions, CfrSubcarrierCountBeyondTheDatasetIsAClearError) {
   });
   EXPECT_TRUE(StartsWith(error, file.string() + ": /cfr/h")) << error;
   EXPECT_NE(error.find("4000000000 values a row asked of a dataset of"), std::string::npos) << error;
+  // The same count against /cfr/h replaced by a scalar (the rank was
+  // checked only after the allocation: 68 GB).
+  make_scalar(file, "/cfr/h");
+  const std::string scalar = error_of([&] {
+    generators::DatasetReader r(file.string());
+    r.frames(0, r.frame_count());
+  });
+  EXPECT_TRUE(StartsWith(scalar, file.string() + ": /cfr/h")) << scalar;
+  EXPECT_NE(scalar.find("not a one- or two-dimensional dataset"), std::string::npos) << scalar;
 }
 
 // A string attribute holding an array of strings: the readers passed a buffer
