@@ -409,9 +409,11 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   //   beam does, and I2 is the image of I1' in f2.
   const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
   const bool ground3 = ground_order3 && max_order >= 3 && ns > 0;
+  static const std::vector<std::uint32_t> no_faces;
+  const std::vector<std::uint32_t>& grounds = ground3 ? faces.ground : no_faces;  // no copy per f1
   Receivers mirrored;  // every receiver's image in each ground face, relative to the source
   std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
-  for (std::uint32_t g : ground3 ? faces.ground : std::vector<std::uint32_t>{}) {
+  for (std::uint32_t g : grounds) {
     const Plane& pg = faces.planes[g];
     for (std::size_t r = 0; r < rx.size(); ++r) {
       const Vec3 xr = receiver(r);
@@ -560,7 +562,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       }
     });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
-    for (std::uint32_t g : ground3 ? faces.ground : std::vector<std::uint32_t>{}) {
+    for (std::uint32_t g : grounds) {
       if (g == f1 || !scene.static_face_reaches(f1, ds > 0 ? 1 : -1, g)) continue;
       if (outside_beam(beam, faces.spheres[g], faces.tol[g], 0)) continue;
       const Plane& pg = faces.planes[g];
