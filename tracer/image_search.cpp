@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 
 namespace raysweep::tracer {
 
@@ -188,9 +189,26 @@ namespace {
 // Receivers in structure-of-arrays form, relative to the source (so the
 // branch-free passes below vectorise and stay exact at city offsets).
 struct Receivers {
-  std::vector<double> x, y, z;
-  std::vector<unsigned char> hit;
-  std::size_t size() const { return x.size(); }
+  static constexpr std::size_t kLanes = 4;
+  std::vector<double> x, y, z;  // padded to whole lanes with NaN (never marked)
+  std::vector<std::int64_t> hit;  // 0 or 1; as wide as a lane, so no packing to bytes
+  std::size_t n = 0;
+  std::size_t size() const { return n; }
+  void push(const Vec3& w) {
+    x.resize(n), y.resize(n), z.resize(n);
+    x.push_back(w[0]);
+    y.push_back(w[1]);
+    z.push_back(w[2]);
+    ++n;
+    pad();
+  }
+  void pad() {
+    const std::size_t padded = (n + kLanes - 1) / kLanes * kLanes;
+    x.resize(padded, std::numeric_limits<double>::quiet_NaN());
+    y.resize(padded, std::numeric_limits<double>::quiet_NaN());
+    z.resize(padded, std::numeric_limits<double>::quiet_NaN());
+    hit.resize(padded);
+  }
 };
 
 // The kernel of mark_crossings on raw arrays. Branch-free, so it
@@ -201,20 +219,28 @@ struct Receivers {
 __attribute__((target_clones("avx2", "default")))
 #endif
 unsigned mark_crossings_kernel(const double* __restrict x, const double* __restrict y, const double* __restrict z,
-                               unsigned char* __restrict hit, std::size_t begin, std::size_t n, const double* nrm,
+                               std::int64_t* __restrict hit, std::size_t begin, std::size_t n, const double* nrm,
                                double plane_offset_rel, double ds, const double* img, const double* c, double r2) {
   const double nx = nrm[0], ny = nrm[1], nz = nrm[2];
   const double ix = img[0], iy = img[1], iz = img[2];
-  const double cx = c[0], cy = c[1], cz = c[2];
+  // The crossing is img + s (x - img), s = ds / (ds + d); its offset from
+  // the centre, scaled by den = ds + d, needs no division (a divide per
+  // receiver was this loop's bottleneck): |den (img - c) + ds (x - img)|^2
+  // <= r2 den^2. den != 0 wherever ds d > 0.
+  const double ax = ix - c[0], ay = iy - c[1], az = iz - c[2];
+  // Whole lanes only (the arrays are padded with NaN, which no test
+  // passes): a scalar remainder loop cost as much as the vector body at
+  // the few dozen receivers a source has. Lanes before `begin` are masked.
+  constexpr std::size_t kLanes = Receivers::kLanes;
+  const std::size_t from = begin / kLanes * kLanes, to = (n + kLanes - 1) / kLanes * kLanes;
   std::int64_t any = 0;
-  for (std::size_t r = begin; r < n; ++r) {
+  for (std::size_t r = from; r < to; ++r) {
     const double d = nx * x[r] + ny * y[r] + nz * z[r] - plane_offset_rel;
-    const double den = ds + d;  // ds and d share their sign when valid
-    const double s = ds / (den + static_cast<double>(den == 0));
-    const double px = ix + s * (x[r] - ix) - cx, py = iy + s * (y[r] - iy) - cy, pz = iz + s * (z[r] - iz) - cz;
-    const std::int64_t in =
-        static_cast<std::int64_t>(ds * d > 0) & static_cast<std::int64_t>(px * px + py * py + pz * pz <= r2);
-    hit[r] = static_cast<unsigned char>(in);
+    const double den = ds + d;
+    const double px = den * ax + ds * (x[r] - ix), py = den * ay + ds * (y[r] - iy), pz = den * az + ds * (z[r] - iz);
+    const std::int64_t in = static_cast<std::int64_t>(r >= begin) & static_cast<std::int64_t>(ds * d > 0) &
+                            static_cast<std::int64_t>(px * px + py * py + pz * pz <= r2 * (den * den));
+    hit[r] = in;
     any |= in;
   }
   return any != 0;
@@ -244,11 +270,10 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   Receivers rx, scratch;
   for (auto r : receivers) {
     const Vec3 w = nodes[r].position - xs;
-    rx.x.push_back(w[0]);
-    rx.y.push_back(w[1]);
-    rx.z.push_back(w[2]);
+    rx.push(w);
   }
-  scratch.hit.resize(rx.size());
+  scratch.n = rx.size();
+  scratch.pad();
   auto receiver = [&](std::size_t r) { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; };
   auto on_face = [&](std::size_t f, const Vec3& p) {
     const Vec3 w = p - faces.spheres[f].centre;
@@ -420,13 +445,10 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       const double d = dot(pg.normal, xr) - pg.offset;
       if (d == 0) continue;  // on the ground plane: no image
       const Vec3 m = xr - (2 * d) * pg.normal - xs;
-      mirrored.x.push_back(m[0]);
-      mirrored.y.push_back(m[1]);
-      mirrored.z.push_back(m[2]);
+      mirrored.push(m);
       mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
     }
   }
-  mirrored.hit.resize(mirrored.size());
   std::vector<Vec3> pyramid, pyramid_g;
   std::vector<std::uint32_t> tree_stack;
   // The beam of f1's reflections: apex (I1, or its image in the ground),
@@ -467,15 +489,22 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // A reflection point accepted within tol of f1's outline moves the
     // continuation by up to tol times (distance / |ds|) at f2.
     // (`spread`: a node's faces lie up to its radius farther than its centre.)
+    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
     auto outside_beam = [&](const Beam& b, const TraceScene::Sphere& sp, double tol, double spread) {
-      Cone c;
-      if (b.narrow && cone_to(b.apex, sp, c) && !cones_overlap(b.cone, c)) return true;
+      // One square root for both tests (this runs for every tree node and
+      // face a beam meets); the pyramid first, as it rejects most.
       const Vec3 w = sp.centre - b.apex;
       const double dist = norm(w);
-      const double pad = 2 * faces.tol[f1] * (dist + sp.radius) / std::fabs(ds) + tol + 1e-6 * (dist + spread);
+      const double pad = spread_per_m * (dist + sp.radius) + tol + 1e-6 * (dist + spread);
       for (const auto& nrm : *b.pyramid)
         if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      return false;
+      if (!b.narrow || dist <= sp.radius) return false;
+      // The cone from the apex through sp against the beam's cone.
+      Cone c;
+      c.axis = (1.0 / dist) * w;
+      c.sin_h = sp.radius / dist;
+      c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
+      return !cones_overlap(b.cone, c);
     };
     // The second faces in beam b: down the sphere tree, groups wholly on the
     // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves

@@ -589,29 +589,34 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         // points too (both ends' estimator).
         const bool mis = diffuse->both_ends && st.seq.n == 0 && st.transmissions == 0;
         const double cos_in = std::fabs(dot(st.d, plane.normal));
+        const std::uint32_t hit_object = scene.object(hit.face);
         const auto record = [&](std::uint32_t j, bool reverse, double power, double tau, const Vec3& departure,
                                 const Vec3& arrival, double dl, bool scatter_first = false) {
           DiffuseKey dk;
           dk.rx = j;
-          dk.object = scene.object(hit.face);
+          dk.object = hit_object;
           dk.bin = static_cast<std::int64_t>(std::floor(tau / diffuse->bin_s));
           dk.reverse = reverse;
           auto [it, fresh] = bin_index.try_emplace(dk, diffuse_out->size());
           if (fresh) diffuse_out->emplace_back(dk, DiffuseAcc{});
-          DiffuseAcc c;
-          c.power = power;
-          c.tau = power * tau;
-          c.point = power * p;
-          c.departure = power * departure;
-          c.arrival = power * arrival;
-          c.doppler = power * (-dl / lambda);
-          c.peak = power;
-          c.n = st.seq.n + 1;
-          std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, c.faces.begin());
-          c.faces[st.seq.n] = hit.face;
-          c.prefix = st.points;
-          c.scatter_first = scatter_first;
-          (*diffuse_out)[it->second].second.add(c);
+          // Summed in place (DiffuseAcc::add's terms and order); the chain
+          // is copied only when this sample is the bin's new peak.
+          DiffuseAcc& acc = (*diffuse_out)[it->second].second;
+          acc.power += power;
+          acc.tau += power * tau;
+          acc.point = acc.point + power * p;
+          acc.departure = acc.departure + power * departure;
+          acc.arrival = acc.arrival + power * arrival;
+          acc.doppler += power * (-dl / lambda);
+          if (power > acc.peak) {
+            acc.peak = power;
+            acc.n = st.seq.n + 1;
+            std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, acc.faces.begin());
+            std::fill(acc.faces.begin() + st.seq.n, acc.faces.end(), FaceRef{});
+            acc.faces[st.seq.n] = hit.face;
+            acc.prefix = st.points;
+            acc.scatter_first = scatter_first;
+          }
         };
         // Received power from the reflected field e_in (the field a smooth
         // surface would reflect) scattered towards ks, at distance rs, by a
