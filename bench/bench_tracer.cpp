@@ -27,8 +27,10 @@
 //                                and default RadioConfig (5.9 GHz); the second
 //                                argument's bits add diffraction (1) and
 //                                diffuse scattering (2), swap the exact image
-//                                search for shoot-and-bounce alone (4), and
-//                                integrate diffuse by tiles (8). Counters
+//                                search for shoot-and-bounce alone (4),
+//                                integrate diffuse by tiles (8), and leave out
+//                                ground_order3 (16), vehicle_multi_bounce (32)
+//                                or the diffuse gathering's second end (64). Counters
 //                                ms_* / tms_* say where the time went
 //                                (SnapshotStats::Timing). Poses come
 //                                from place_on_lanes(net, N, seed 1,
@@ -263,10 +265,25 @@ void BM_EmbreeRaw(benchmark::State& state, const std::string& name) {
 // kSbr: the same with shoot-and-bounce alone as the candidate search (what
 // the exact image search costs and buys).
 // kTiles: diffuse scattering integrated by surface tiles instead of rays.
-enum Mechanisms { kSpecular = 0, kDiffraction = 1, kDiffuse = 2, kAll = 3, kSbr = 4, kTiles = 8 };
+// kNoGround3, kNoMultiBounce, kOneEnd: without one of the completeness
+// classes (tracer.ground_order3, vehicle_multi_bounce, diffuse_both_ends),
+// so what each costs is measured on its own.
+enum Mechanisms {
+  kSpecular = 0,
+  kDiffraction = 1,
+  kDiffuse = 2,
+  kAll = 3,
+  kSbr = 4,
+  kTiles = 8,
+  kNoGround3 = 16,
+  kNoMultiBounce = 32,
+  kOneEnd = 64
+};
 std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
-  return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search");
+  return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search") +
+         (m & kNoGround3 ? ", no ground_order3" : "") + (m & kNoMultiBounce ? ", no vehicle_multi_bounce" : "") +
+         (m & kOneEnd ? ", diffuse from one end" : "");
 }
 
 // The per-model multi-bounce tables are built on first use and kept with the
@@ -289,6 +306,9 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   cfg.diffuse = mech & kDiffuse;
   if (mech & kSbr) cfg.candidates = tracer::CandidateSearch::sbr;
   if (mech & kTiles) cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
+  if (mech & kNoGround3) cfg.ground_order3 = false;
+  if (mech & kNoMultiBounce) cfg.vehicle_multi_bounce = false;
+  if (mech & kOneEnd) cfg.diffuse_both_ends = false;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   warm_bounce_tables(*scene, cfg);
@@ -470,6 +490,8 @@ void register_all() {
     for (int n : {20, 60})
       for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll})
         snap->Args({n, m});
+    // What each completeness class costs (issue 14), at 60 vehicles.
+    for (int m : {kSpecular | kNoGround3, kSpecular | kNoMultiBounce, kAll | kOneEnd}) snap->Args({60, m});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
     // Further arguments x 1000: diffuse_shadow_ratio, diffuse_tile_ratio,
     // diffuse_tile_m.
