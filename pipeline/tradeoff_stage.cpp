@@ -611,7 +611,8 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   std::ostringstream csv;
   csv << "label,rays,depth,diffuse,diffraction,refraction,lod,static_simplification,time_per_snapshot_s,"
          "err_median_db,err_p95_db,los_agreement,power_fraction,power_fraction_median,paths,pareto,rays_traced,"
-         "missed_pairs,err_median_rx_db,err_p95_rx_db\n";
+         "missed_pairs,err_median_rx_db,err_p95_rx_db,base\n";
+  const std::string base_label = setting_label(base_rays, base_depth);  // the config's own setting
   json rows = json::array();
   for (std::size_t g = 0; g < grid.size(); ++g) {
     const auto& s = grid[g];
@@ -622,7 +623,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
         << "," << fmt_num(r.los_agreement) << "," << fmt_num(r.power_fraction) << ","
         << fmt_num(r.power_fraction_median) << "," << fmt_num(r.paths) << "," << int(r.pareto) << ","
         << fmt_num(r.rays_traced) << "," << fmt_num(r.missed_pairs) << "," << fmt_num(r.err_median_rx_db) << ","
-        << fmt_num(r.err_p95_rx_db) << "\n";
+        << fmt_num(r.err_p95_rx_db) << "," << int(s.label == base_label) << "\n";
     rows.push_back({{"label", s.label},
                     {"reference", s.reference},
                     {"rays", s.tracer.rays_per_source},
