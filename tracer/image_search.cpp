@@ -146,8 +146,15 @@ ImageFaces image_faces(const TraceScene& scene) {
   return t;
 }
 
-bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& seq) {
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& seq,
+                    bool ground_order3) {
   if (seq.size() == 1) return true;
+  auto is_ground = [&](const FaceRef& f) {
+    return f.instance == 0 && std::binary_search(faces.ground.begin(), faces.ground.end(), f.face);
+  };
+  if (seq.size() == 3)
+    return ground_order3 && !scene.is_vehicle(seq[0]) && !scene.is_vehicle(seq[1]) && !scene.is_vehicle(seq[2]) &&
+           (is_ground(seq[0]) || is_ground(seq[1]) || is_ground(seq[2]));
   if (seq.size() != 2) return false;
   const bool v0 = scene.is_vehicle(seq[0]), v1 = scene.is_vehicle(seq[1]);
   if (!v0 && !v1) return true;

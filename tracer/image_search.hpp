@@ -72,8 +72,11 @@ struct ImageFaces {
   std::vector<std::uint32_t> static_order;
 };
 // True when the image search enumerates every sequence of this kind
-// (order 1; order 2 of static faces, or of the ground and a vehicle).
-bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence);
+// (order 1; order 2 of static faces, or of the ground and a vehicle; with
+// `ground_order3` (the search ran with it, at order 3) three static faces
+// of which one or more is the ground).
+bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std::vector<FaceRef>& sequence,
+                    bool ground_order3 = false);
 ImageFaces image_faces(const TraceScene& scene);
 
 // Face sequences of order 1..max_order (at most 3: on one vehicle, or

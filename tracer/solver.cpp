@@ -961,7 +961,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       for (std::size_t q = 0; q < out.found.size(); ++q) {
         auto& k = out.found[q];
         // The image search already enumerated these completely.
-        if (image && image_complete(scene, faces, k.faces)) continue;
+        if (image && image_complete(scene, faces, k.faces, cfg.ground_order3 && cfg.max_depth >= 3)) continue;
         const std::uint32_t a = std::min(src, k.other), b = std::max(src, k.other);
         const auto it = slot.find(static_cast<std::uint64_t>(a) << 32 | b);
         if (it == slot.end() || !in_range[it->second]) continue;
