@@ -32,12 +32,6 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
-// Face sequence of one shoot-and-bounce ray, without heap allocation.
-struct Sequence {
-  std::array<FaceRef, kMaxDepth> faces{};
-  int n = 0;
-};
-
 struct CandidateKey {
   std::uint32_t other;
   std::vector<FaceRef> faces;
@@ -471,6 +465,15 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
   const bool scatter = diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty());
   const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
   const double lambda = em.wavelength();
+  // A ray's reflections so far, as links into the ray's chain (the states
+  // of one ray share their prefixes): copying whole face and point arrays
+  // of kMaxDepth entries per state cost more than the rest of the loop.
+  struct Link {
+    FaceRef face;
+    Vec3 point;
+    std::int32_t parent;
+  };
+  std::vector<Link> chain;
   struct State {
     Vec3 o, d;
     double len;
@@ -478,14 +481,23 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
     double loss_db;
     bool has_leaving;
     FaceRef leaving;
-    Sequence seq;
+    int n;               // reflections so far
+    std::int32_t last;   // the last one's link (-1: none)
     // Diffuse bookkeeping: the ray tube's field (transmit pattern times
     // every coefficient so far), dL/dt of the legs so far, the velocity of
-    // the last interaction point, and the reflection points.
+    // the last interaction point.
     CVec3 field;
     double dl_dt;
     Vec3 v_prev;
-    std::array<Vec3, kMaxDepth> points;
+  };
+  // The faces of st's reflections in order into out[0, st.n), their points
+  // into points (when given).
+  auto unwind = [&](const State& st, FaceRef* out, Vec3* points) {
+    std::int32_t l = st.last;
+    for (int k = st.n - 1; k >= 0; --k, l = chain[l].parent) {
+      out[k] = chain[l].face;
+      if (points) points[k] = chain[l].point;
+    }
   };
   std::vector<State> stack;
   const Vec3 ref = nodes[src].position;
@@ -500,7 +512,8 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
   CandidateKey key;
   std::unordered_map<DiffuseKey, std::size_t, DiffuseKeyHash> bin_index;
   for (std::size_t r = begin; r < end; ++r) {
-    State first{nodes[src].position, lattice[r], 0, 0, 0, false, {}, {}, {}, 0, nodes[src].velocity, {}};
+    chain.clear();
+    State first{nodes[src].position, lattice[r], 0, 0, 0, false, {}, 0, -1, {}, 0, nodes[src].velocity};
     if (scatter) first.field = cvec(antenna_field(em.radio().antenna, lattice[r], nodes[src].forward));
     stack.push_back(first);
     while (!stack.empty()) {
@@ -511,7 +524,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
                                          hit, st.has_leaving ? &st.leaving : nullptr);
       ++rays;
       const double tseg = got ? hit.t : std::numeric_limits<double>::infinity();
-      if (st.seq.n > 0) {
+      if (st.n > 0) {
         // Branch-free pass over all nodes first (vectorises), keys only for hits.
         const std::size_t nn = nodes.size();
         // Single precision relative to the source (city-sized offsets keep
@@ -534,15 +547,16 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         for (std::uint32_t j = 0; any && j < nn; ++j) {
           if (!inside[j] || j == src) continue;
           key.other = j;
-          key.faces.assign(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n);
+          key.faces.resize(st.n);
+          unwind(st, key.faces.data(), nullptr);
           if (seen.insert(key).second) out.push_back(key);
         }
       }
       // After one reflection on a static face: the vehicles this ray passes
       // (within their sphere, widened by twice the ray spacing at that
       // distance) are in that face's beam (BeamVehicle).
-      if (beams && st.seq.n == 1 && st.seq.faces[0].instance == 0 &&
-          !std::binary_search(beam_faces->ground.begin(), beam_faces->ground.end(), st.seq.faces[0].face)) {
+      if (beams && st.n == 1 && chain[st.last].face.instance == 0 &&
+          !std::binary_search(beam_faces->ground.begin(), beam_faces->ground.end(), chain[st.last].face.face)) {
         const auto& spheres = beam_faces->vehicle_spheres;
         const double tmax = std::min(tseg, 1e30);
         for (std::uint32_t v = 0; v < spheres.size(); ++v) {
@@ -550,7 +564,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const double t = std::clamp(dot(c, st.d), 0.0, tmax);
           const Vec3 q = c - t * st.d;
           const double reach = spheres[v].radius + 2 * spacing * (st.len + t);
-          if (dot(q, q) <= reach * reach) beams->push_back({st.seq.faces[0].face, v});
+          if (dot(q, q) <= reach * reach) beams->push_back({chain[st.last].face.face, v});
         }
       }
       if (!got) continue;
@@ -558,8 +572,8 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       const auto mat = scene.material(hit.face);
       const RadioMaterial& material = em.material(mat);
       const double s_coef = scatter ? material.scattering.s : 0.0;  // scatter implies em's rough surfaces
-      const bool can_scatter = s_coef > 0 && st.seq.n < cfg.max_depth;
-      const bool can_reflect = cfg.specular && st.seq.n < cfg.max_depth;
+      const bool can_scatter = s_coef > 0 && st.n < cfg.max_depth;
+      const bool can_reflect = cfg.specular && st.n < cfg.max_depth;
       const bool can_transmit = cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat);
       Plane plane;
       if (scatter || can_reflect) plane = scene.plane(hit.face);
@@ -587,7 +601,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         const ScatteringLobeAt lobe(sc, st.d, plane.normal);
         // First order, nothing crossed: the other end's rays sample these
         // points too (both ends' estimator).
-        const bool mis = diffuse->both_ends && st.seq.n == 0 && st.transmissions == 0;
+        const bool mis = diffuse->both_ends && st.n == 0 && st.transmissions == 0;
         const double cos_in = std::fabs(dot(st.d, plane.normal));
         const std::uint32_t hit_object = scene.object(hit.face);
         const auto record = [&](std::uint32_t j, bool reverse, double power, double tau, const Vec3& departure,
@@ -610,11 +624,11 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           acc.doppler += power * (-dl / lambda);
           if (power > acc.peak) {
             acc.peak = power;
-            acc.n = st.seq.n + 1;
-            std::copy(st.seq.faces.begin(), st.seq.faces.begin() + st.seq.n, acc.faces.begin());
-            std::fill(acc.faces.begin() + st.seq.n, acc.faces.end(), FaceRef{});
-            acc.faces[st.seq.n] = hit.face;
-            acc.prefix = st.points;
+            acc.n = st.n + 1;
+            acc.faces.fill(FaceRef{});
+            acc.prefix.fill(Vec3{0, 0, 0});
+            unwind(st, acc.faces.data(), acc.prefix.data());
+            acc.faces[st.n] = hit.face;
             acc.scatter_first = scatter_first;
           }
         };
@@ -712,14 +726,15 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         next.len = st.len + hit.t;
         next.has_leaving = true;
         next.leaving = hit.face;
+        chain.push_back(Link{hit.face, p, st.last});
+        next.last = static_cast<std::int32_t>(chain.size() - 1);
+        ++next.n;
         if (scatter) {
-          next.points[st.seq.n] = p;
           const double keep = em.specular_keep(mat);
           next.field = {keep * e_ref[0], keep * e_ref[1], keep * e_ref[2]};
           next.dl_dt = dl_in;
           next.v_prev = v_surf;
         }
-        next.seq.faces[next.seq.n++] = hit.face;
         stack.push_back(next);
       }
     }
