@@ -585,7 +585,10 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       Vec3 es{0, 0, 0}, ep_in{0, 0, 0}, v_surf{0, 0, 0};
       CVec3 e_ref{};
       double dl_in = 0;
-      if (scatter) {
+      // Not where nothing downstream can scatter any more (the last bounce
+      // off a smooth, opaque face): the slab coefficients are the costly part.
+      const bool field_needed = can_scatter || can_transmit || (can_reflect && st.n + 1 < cfg.max_depth);
+      if (scatter && field_needed) {
         coef = em.coefficients(mat, std::fabs(dot(st.d, plane.normal)));
         es = te_basis(st.d, plane.normal);
         ep_in = cross(es, st.d);
