@@ -7,7 +7,10 @@ execute_process(COMMAND git rev-parse --short=12 HEAD WORKING_DIRECTORY ${SRC}
 if(NOT rc EQUAL 0 OR NOT hash)
   set(hash "unknown")
 else()
-  # Tracked files modified (untracked ones do not change what is built).
+  # Tracked files modified (untracked ones do not change what is built);
+  # the index's stat cache refreshed first, so a touched but unchanged file
+  # does not count.
+  execute_process(COMMAND git update-index -q --refresh WORKING_DIRECTORY ${SRC} OUTPUT_QUIET ERROR_QUIET)
   execute_process(COMMAND git diff-index --quiet HEAD -- WORKING_DIRECTORY ${SRC} RESULT_VARIABLE dirty ERROR_QUIET)
   if(NOT dirty EQUAL 0)
     string(APPEND hash "-dirty")
