@@ -1002,6 +1002,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     struct Entry {
       std::uint32_t task, index;
     };
+    struct Grouped {
+      std::vector<std::size_t> begin;  // pair p's entries: [begin[p], begin[p + 1])
+      std::vector<Entry> entries;
+    };
     auto group = [&](const std::vector<std::vector<std::size_t>>& slots) {
       std::vector<std::size_t> begin(pairs.size() + 1, 0);
       for (const auto& v : slots)
@@ -1014,16 +1018,20 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         for (std::size_t q = 0; q < slots[t].size(); ++q)
           if (slots[t][q] != kNoSlot)
             entries[at[slots[t][q]]++] = Entry{static_cast<std::uint32_t>(t), static_cast<std::uint32_t>(q)};
-      return std::pair{std::move(begin), std::move(entries)};
+      return Grouped{std::move(begin), std::move(entries)};
     };
-    const auto [found_begin, found_entries] = group(found_slot);
-    const auto [bin_begin, bin_entries] = group(bin_slot);
+    // (Named members, not structured bindings: clang before 16 cannot
+    // capture those in the lambda below.)
+    const Grouped found_by_pair = group(found_slot), bins_by_pair = group(bin_slot);
     tbb::parallel_for(std::size_t{0}, pairs.size(), [&](std::size_t p) {
-      for (std::size_t e = found_begin[p]; e < found_begin[p + 1]; ++e)
-        candidates[p].push_back(std::move(tasks[found_entries[e].task].found[found_entries[e].index].faces));
-      for (std::size_t e = bin_begin[p]; e < bin_begin[p + 1]; ++e) {
-        const auto& [dk, acc] = tasks[bin_entries[e].task].bins[bin_entries[e].index];
-        diffuse[p][dk].add(acc);
+      for (std::size_t e = found_by_pair.begin[p]; e < found_by_pair.begin[p + 1]; ++e) {
+        const Entry& en = found_by_pair.entries[e];
+        candidates[p].push_back(std::move(tasks[en.task].found[en.index].faces));
+      }
+      for (std::size_t e = bins_by_pair.begin[p]; e < bins_by_pair.begin[p + 1]; ++e) {
+        const Entry& en = bins_by_pair.entries[e];
+        const auto& bin = tasks[en.task].bins[en.index];
+        diffuse[p][bin.first].add(bin.second);
       }
     });
     for (std::size_t task = 0; task < tasks.size(); ++task) {
