@@ -228,8 +228,10 @@ static void attach_triangles(RTCDevice device, const TraceScene::Shape& s, const
   rtcReleaseGeometry(g);
 }
 
-// Builds per-face planes and an Embree scene from a meshkit scene.
-static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDevice device, const Vec3& origin,
+// Builds per-face planes and geometry tables from a meshkit scene (its
+// Embree geometry: attach_triangles, into the top-level scene for the city
+// and into a scene of its own for a vehicle model).
+static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene,
                         const std::function<std::uint16_t(const std::string&)>& material_index,
                         std::uint32_t object_base) {
   std::map<std::pair<std::size_t, std::uint32_t>, std::uint32_t> face_index;
@@ -342,13 +344,6 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene, RTCDe
     if (!s.vertices.empty()) s.bounds = TraceScene::Sphere{0.5 * (lo + hi), 0.5 * norm(hi - lo)};
   }
   build_normal_index(s);
-
-  s.scene = rtcNewScene(device);
-  rtcSetSceneFlags(s.scene, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
-  rtcSetSceneBuildQuality(s.scene, RTC_BUILD_QUALITY_HIGH);
-  if (!s.triangles.empty()) attach_triangles(device, s, origin, s.scene);
-  rtcCommitScene(s.scene);
-  check_device(device, s.name.c_str());
 }
 
 namespace {
@@ -470,8 +465,7 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   for (const auto& o : static_scene.objects) d.static_objects.push_back(o.source_id);
   if (d.static_objects.empty()) d.static_objects.push_back("static");
   d.world.name = "static scene";
-  build_shape(d.world, static_scene, d.device, d.origin,
-              [this](const std::string& m) { return material_index(m); }, 0);
+  build_shape(d.world, static_scene, [this](const std::string& m) { return material_index(m); }, 0);
   for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
   d.edges = extract_edges(d.world, d.static_objects);
   {
@@ -520,7 +514,6 @@ TraceScene::~TraceScene() {
   for (auto g : d.slots) rtcReleaseGeometry(g);
   if (d.top) rtcReleaseScene(d.top);
   for (auto& m : d.models) rtcReleaseScene(m->scene);
-  if (d.world.scene) rtcReleaseScene(d.world.scene);
   rtcReleaseDevice(d.device);
 }
 
@@ -537,7 +530,13 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
   auto s = std::make_unique<Shape>();
   s->name = "vehicle model " + name;
   s->antenna = antenna;
-  build_shape(*s, model, d.device, Vec3{0, 0, 0}, [this](const std::string& m) { return material_index(m); }, 0);
+  build_shape(*s, model, [this](const std::string& m) { return material_index(m); }, 0);
+  s->scene = rtcNewScene(d.device);
+  rtcSetSceneFlags(s->scene, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
+  rtcSetSceneBuildQuality(s->scene, RTC_BUILD_QUALITY_HIGH);
+  if (!s->triangles.empty()) attach_triangles(d.device, *s, Vec3{0, 0, 0}, s->scene);
+  rtcCommitScene(s->scene);
+  check_device(d.device, s->name.c_str());
   {
     // Faces the antenna sees on its own vehicle (through its windows too:
     // rays continue through every face until they leave the model).
