@@ -383,6 +383,9 @@ const Table<TraceSettings>& tracer_table() {
     t.key("diffuse_both_ends", boolean(), FIELD(tracer.diffuse_both_ends), "",
           "rays: both ends' rays gather (first order weighted by the balance heuristic; scattering before "
           "reflections from the end that reaches it); false: the lower end's rays alone");
+    t.key("diffuse_roulette_db", number(at_least(0)), FIELD(tracer.diffuse_roulette_db), "dB",
+          "rays: samples this far below the sensitivity (|a|^2 under sensitivity - tx power) play Russian "
+          "roulette before their shadow ray (unbiased; >= 300: off)");
     t.key("vehicle_multi_bounce", boolean(), FIELD(tracer.vehicle_multi_bounce), "",
           "image search: two and three reflections on one vehicle from a per-model table of multi-bounce sequences");
     t.key("ground_order3", boolean(), FIELD(tracer.ground_order3), "",

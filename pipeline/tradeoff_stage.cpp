@@ -302,6 +302,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     ref.tracer.diffuse_tile_m = std::min(base.diffuse_tile_m, 0.25);
     ref.tracer.diffuse_tile_ratio = std::min(base.diffuse_tile_ratio, 0.05);
     ref.tracer.diffuse_shadow_ratio = 0;
+    ref.tracer.diffuse_roulette_db = 300;  // every diffuse sample traced
     ref.lod = 0;
     grid.push_back(ref);
   }
@@ -364,6 +365,13 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     if (base.diffuse && base.diffuse_integration == tracer::DiffuseIntegration::rays) {
       s = variant(base.diffuse_both_ends ? "diffuse one end" : "diffuse both ends");
       s.tracer.diffuse_both_ends = !base.diffuse_both_ends;
+      grid.push_back(s);
+    }
+    // Diffuse by rays: the roulette on weak samples' shadow rays.
+    if (base.diffuse && base.diffuse_integration == tracer::DiffuseIntegration::rays) {
+      const bool on = base.diffuse_roulette_db < 300;
+      s = variant(on ? "-diffuse roulette" : "+diffuse roulette");
+      s.tracer.diffuse_roulette_db = on ? 300 : 20;
       grid.push_back(s);
     }
     // The per-model multi-bounce table of the image search.
@@ -638,6 +646,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                                                                                           : "exhaustive"},
                     {"path_threshold_db", s.tracer.path_threshold_db},
                     {"diffuse_both_ends", s.tracer.diffuse_both_ends},
+                    {"diffuse_roulette_db", s.tracer.diffuse_roulette_db},
                     {"vehicle_multi_bounce", s.tracer.vehicle_multi_bounce},
                     {"ground_order3", s.tracer.ground_order3},
                     {"lod", s.lod},

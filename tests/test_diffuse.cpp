@@ -832,3 +832,60 @@ TEST(Diffuse, OneSourceToManyPointsEqualsTheTracedPairs) {
   cfg.diffuse = false;
   for (double p : tracer::diffuse_power(scene, nodes, 0, points, cfg, {})) EXPECT_EQ(p, 0.0);
 }
+
+// ---------------------------------------------------------------------------
+// 12. Russian roulette on the gathering's shadow rays.
+
+TEST(Diffuse, RouletteIsUnbiasedWithinItsBoundAndSkipsShadowRays) {
+  // A threshold above most single samples: they are kept with probability
+  // power / threshold and then count the threshold. Against every sample
+  // traced, each pair's diffuse power stays within its standard deviation
+  // bound sqrt(threshold x power) (the config's 10^(-dB / 20) at the
+  // sensitivity), pooled too, and most shadow rays are skipped.
+  const tracer::TraceScene scene(street());
+  auto nodes = street_nodes();
+  nodes.push_back(node("g", {-10, 4, 1.5}));
+  nodes.push_back(node("h", {30, -6, 1.5}));
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = 4096;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  cfg.diffuse_roulette_db = 300;  // off
+  const auto off = tracer::trace_snapshot(scene, nodes, cfg, {});
+  const auto p_off = pair_diffuse(off);
+  std::vector<double> sorted = p_off;
+  std::sort(sorted.begin(), sorted.end());
+  const double threshold = sorted[sorted.size() / 2] / 1000;  // the median pair: sigma <= 3.2 %
+  ASSERT_GT(threshold, 0);
+  tracer::RadioConfig radio;
+  radio.tx_power_dbm = 0;
+  radio.sensitivity_dbm = 10 * std::log10(threshold);
+  cfg.diffuse_roulette_db = 0;
+  auto run = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    return tracer::trace_snapshot(scene, nodes, cfg, radio);
+  };
+  const auto on = run(2);
+  const auto p_on = pair_diffuse(on);
+  ASSERT_EQ(p_on.size(), p_off.size());
+  double sum_on = 0, sum_off = 0, worst = 0;
+  for (std::size_t k = 0; k < p_off.size(); ++k) {
+    ASSERT_GT(p_off[k], 0) << "pair " << k;
+    const double sigma = std::sqrt(threshold * p_off[k]);
+    worst = std::max(worst, std::fabs(p_on[k] - p_off[k]) / sigma);
+    EXPECT_LE(std::fabs(p_on[k] - p_off[k]), 4.5 * sigma) << "pair " << k << ": " << p_on[k] << " vs " << p_off[k];
+    sum_on += p_on[k];
+    sum_off += p_off[k];
+  }
+  EXPECT_LE(std::fabs(sum_on - sum_off), 4.5 * std::sqrt(threshold * sum_off));
+  EXPECT_GT(worst, 0.0) << "the roulette changed nothing: the threshold is below every sample";
+  // Shoot rays are the same; shadow rays were skipped.
+  std::printf("roulette: rays %llu -> %llu, worst |deviation| %.2f sigma bounds, total %+.3f %%\n",
+              static_cast<unsigned long long>(off.stats.rays), static_cast<unsigned long long>(on.stats.rays), worst,
+              100 * (sum_on / sum_off - 1));
+  EXPECT_LT(on.stats.rays, off.stats.rays * 3 / 4);
+  // The same samples whatever the thread count.
+  const auto one = run(1);
+  EXPECT_EQ(pair_diffuse(one), p_on);
+}

@@ -63,6 +63,7 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
     bad("tracer.diffuse_tile_ratio must be positive");
   if (!(t.diffuse_shadow_ratio >= 0) || !std::isfinite(t.diffuse_shadow_ratio))
     bad("tracer.diffuse_shadow_ratio must be >= 0");
+  if (!(t.diffuse_roulette_db >= 0)) bad("tracer.diffuse_roulette_db must be >= 0 (300 or more: off)");
   if (!std::isfinite(t.path_threshold_db)) bad("tracer.path_threshold_db must be finite (<= 0 keeps every path)");
   if (std::isnan(t.range_margin_db)) bad("tracer.range_margin_db must be a number");
   if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
@@ -437,7 +438,36 @@ struct DiffuseTargets {
   std::vector<std::uint32_t> rev;
   bool both_ends = false;
   double bin_s = 1e-7;  // delay bin width
+  // Samples below this power (|a|^2) play Russian roulette (0: none).
+  double roulette = 0;
 };
+
+// The roulette's threshold for `cfg` (TracerConfig::diffuse_roulette_db).
+double roulette_power(const TracerConfig& cfg, const RadioConfig& radio) {
+  if (cfg.diffuse_roulette_db >= 300) return 0;
+  return std::pow(10.0, (radio.sensitivity_dbm - radio.tx_power_dbm - cfg.diffuse_roulette_db) / 10);
+}
+
+// A uniform number in [0, 1) from a sample's identity (splitmix64's
+// finaliser over the mixed fields): the roulette gives the same answer
+// whatever the thread count or the order the samples run in.
+inline double sample_uniform(std::uint64_t a, std::uint64_t b, std::uint64_t c) {
+  std::uint64_t z = a * 0x9E3779B97F4A7C15ull ^ (b + 0x632BE59BD9B4E019ull) * 0xBF58476D1CE4E5B9ull ^
+                    (c + 0x8CB92BA72F3D8DD7ull) * 0x94D049BB133111EBull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
+// Russian roulette for a sample whose power is at most `bound`: the weight
+// to multiply its power by when it is kept (1 above the threshold), or 0
+// when it is dropped (then its shadow ray is never traced).
+inline double roulette_weight(double bound, double threshold, double u) {
+  if (!(bound < threshold)) return 1.0;
+  const double q = bound / threshold;
+  return u < q ? 1.0 / q : 0.0;
+}
 
 // Balance-heuristic weight of the samples of end a for first-order
 // scattering at a point seen from a and b: each end's rays hit the surface
@@ -465,6 +495,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
   const bool scatter = diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty());
   const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
   const double lambda = em.wavelength();
+  const double rx_peak_gain = peak_gain(em.radio().antenna.pattern);
   // A ray's reflections so far, as links into the ray's chain (the states
   // of one ray share their prefixes): copying whole face and point arrays
   // of kMaxDepth entries per state cost more than the rest of the loop.
@@ -513,6 +544,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
   std::unordered_map<DiffuseKey, std::size_t, DiffuseKeyHash> bin_index;
   for (std::size_t r = begin; r < end; ++r) {
     chain.clear();
+    std::uint64_t hit_no = 0;  // the ray's hits so far: the roulette's sample identity
     State first{nodes[src].position, lattice[r], 0, 0, 0, false, {}, 0, -1, {}, 0, nodes[src].velocity};
     if (scatter) first.field = cvec(antenna_field(em.radio().antenna, lattice[r], nodes[src].forward));
     stack.push_back(first);
@@ -568,6 +600,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         }
       }
       if (!got) continue;
+      ++hit_no;
       const Vec3 p = st.o + hit.t * st.d;
       const auto mat = scene.material(hit.face);
       const RadioMaterial& material = em.material(mat);
@@ -650,6 +683,16 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const double g_eff = ((1 - sc.xpd) * co + sc.xpd * cross_pol) * er2 / et2;
           return s_coef * s_coef * f * g_eff * lambda * lambda * d_omega / (16 * kPi * kPi * rs * rs);
         };
+        // The roulette's bound on a sample's power, per lobe value, incident
+        // |E|^2 and 1 / distance^2: scattered()'s factors with the received
+        // part of the field at most its whole and the receive pattern at its
+        // peak gain (|R| <= 1 on a passive surface bounds the incident field
+        // of the samples lit from the other end).
+        const double bound_per_gain =
+            s_coef * s_coef * rx_peak_gain * lambda * lambda * d_omega / (16 * kPi * kPi);
+        const double e_ref2 = diffuse->roulette > 0
+                                  ? std::norm(e_ref[0]) + std::norm(e_ref[1]) + std::norm(e_ref[2])
+                                  : 0.0;
         // Towards node j along ks: this ray's chain, then the scattering.
         const auto gather = [&](std::uint32_t j, bool reverse) {
           const Vec3 w = nodes[j].position - p;
@@ -658,10 +701,16 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const Vec3 ks = (1.0 / rs) * w;
           const double f = lobe(ks);
           if (!(f > 0)) return;
+          const double balance = mis ? balance_weight(cos_in, len_in, std::fabs(dot(ks, plane.normal)), rs) : 1.0;
+          double weight = 1;
+          if (diffuse->roulette > 0) {
+            weight = roulette_weight(bound_per_gain * f * e_ref2 / (rs * rs) * balance, diffuse->roulette,
+                                     sample_uniform(std::uint64_t{src} << 32 | r, hit_no, std::uint64_t{j} << 1 | reverse));
+            if (weight == 0) return;
+          }
           ++rays;
           if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) return;
-          double power = scattered(e_ref, ks, f, rs, nodes[j].forward);
-          if (mis) power *= balance_weight(cos_in, len_in, std::fabs(dot(ks, plane.normal)), rs);
+          const double power = scattered(e_ref, ks, f, rs, nodes[j].forward) * balance * weight;
           if (!(power > 0)) return;
           const double dl = dl_in + dot(ks, nodes[j].velocity - v_surf), tau = (len_in + rs) / kSpeedOfLight;
           if (!reverse) {
@@ -688,17 +737,28 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           const Vec3 ks = -1.0 * st.d;
           const double f = ScatteringLobeAt(sc, ki, plane.normal)(ks);
           if (!(f > 0)) continue;
+          const double cos_a = std::fabs(dot(ki, plane.normal));
+          const double balance = balance_weight(cos_a, la, cos_in, hit.t);
+          const CVec3 e_a = cvec(antenna_field(em.radio().antenna, ki, nodes[j].forward));
+          // The roulette's bound before the slab coefficients (the costly
+          // part): |R| <= 1 on a passive surface, and the received part of
+          // the scattered field is at most its whole (scattered()'s terms).
+          double weight = 1;
+          if (diffuse->roulette > 0) {
+            const double e2 = std::norm(e_a[0]) + std::norm(e_a[1]) + std::norm(e_a[2]);
+            weight = roulette_weight(bound_per_gain * f * e2 / (hit.t * hit.t) * balance, diffuse->roulette,
+                                     sample_uniform(std::uint64_t{src} << 32 | r, hit_no, std::uint64_t{j} << 1 | 1));
+            if (weight == 0) continue;
+          }
           ++rays;
           if (scene.occluded(p, -1.0 * ki, 0, la - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
-          const double cos_a = std::fabs(dot(ki, plane.normal));
           const auto ca = em.coefficients(mat, cos_a);
           const Vec3 es_a = te_basis(ki, plane.normal);
           const Vec3 ko_a = ki - (2 * dot(ki, plane.normal)) * plane.normal;
-          const CVec3 e_a = cvec(antenna_field(em.radio().antenna, ki, nodes[j].forward));
           const CVec3 e_ref_a =
               combine(ca.r.te * cdot(e_a, es_a), es_a, ca.r.tm * cdot(e_a, cross(es_a, ki)), cross(es_a, ko_a));
           double power = scattered(e_ref_a, ks, f, hit.t, nodes[src].forward);
-          power *= balance_weight(cos_a, la, cos_in, hit.t);
+          power *= balance * weight;
           if (!(power > 0)) continue;
           record(j, true, power, (la + hit.t) / kSpeedOfLight, ki, st.d,
                  dot(ki, v_surf - nodes[j].velocity) + dot(ks, nodes[src].velocity - v_surf));
@@ -777,6 +837,7 @@ std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Nod
   const double range = max_range_m(cfg, radio);
   DiffuseTargets targets;
   targets.bin_s = 1.0 / radio.bandwidth_hz;
+  targets.roulette = roulette_power(cfg, radio);
   std::unordered_map<std::uint32_t, std::size_t> slot;
   for (std::size_t k = 0; k < receivers.size(); ++k) {
     const auto r = receivers[k];
@@ -895,6 +956,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     std::sort(t.rev.begin(), t.rev.end());
     t.both_ends = cfg.diffuse_both_ends;
     t.bin_s = 1.0 / radio.bandwidth_hz;
+    t.roulette = roulette_power(cfg, radio);
   }
   std::sort(sources.begin(), sources.end());
   std::vector<std::vector<std::vector<FaceRef>>> candidates(pairs.size());
