@@ -386,6 +386,12 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.ground_order3 = !base.ground_order3;
       grid.push_back(s);
     }
+    // Its order-3 sequences in the lit beams of static face pairs.
+    if (base.candidates == tracer::CandidateSearch::image && base_depth >= 3) {
+      s = variant(base.beam_order3 ? "-beam order 3" : "+beam order 3");
+      s.tracer.beam_order3 = !base.beam_order3;
+      grid.push_back(s);
+    }
     // What the exact image search costs and buys over sampling alone.
     if (base.candidates != tracer::CandidateSearch::exhaustive) {
       const bool image = base.candidates == tracer::CandidateSearch::image;
@@ -649,6 +655,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                     {"diffuse_roulette_db", s.tracer.diffuse_roulette_db},
                     {"vehicle_multi_bounce", s.tracer.vehicle_multi_bounce},
                     {"ground_order3", s.tracer.ground_order3},
+                    {"beam_order3", s.tracer.beam_order3},
                     {"lod", s.lod},
                     {"static_simplification", s.simplify_m},
                     {"static_triangles", scenes.at(s.simplify_m).stats.triangles_after},

@@ -95,6 +95,12 @@ struct TracerConfig {
   // ground (wall, ground, wall; the ground first or last), exactly. Off:
   // those come from shoot and bounce alone.
   bool ground_order3 = true;
+  // Image search: three reflections that begin on two static faces (wall,
+  // wall, then a wall or a vehicle; BeamPair). The pairs come from the
+  // shoot-and-bounce rays that reflect on both (the beam is lit), the third
+  // face from the pair's beam, exactly. Off: those come from shoot and
+  // bounce alone.
+  bool beam_order3 = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the
   // node that looks (visibility) or from the nearer end (integration;

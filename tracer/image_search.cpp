@@ -253,6 +253,26 @@ unsigned mark_crossings_kernel(const double* __restrict x, const double* __restr
   return any != 0;
 }
 
+// The pyramid from `apex` through static face f's convex outline: one
+// plane through the apex per outline edge, as inward unit normals, appended
+// to `out` (none for a degenerate edge: conservative).
+void outline_pyramid(const ImageFaces& faces, std::uint32_t f, const Vec3& apex, std::vector<Vec3>& out) {
+  const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
+  if (o1 - o0 < 3) return;
+  Vec3 centre{0, 0, 0};
+  for (std::uint32_t k = o0; k < o1; ++k) centre = centre + faces.outline[k];
+  centre = (1.0 / (o1 - o0)) * centre;
+  for (std::uint32_t k = o0; k < o1; ++k) {
+    const Vec3 a = faces.outline[k] - apex, b = faces.outline[k + 1 < o1 ? k + 1 : o0] - apex;
+    Vec3 nrm = cross(a, b);
+    const double l = norm(nrm);
+    if (!(l > 1e-9 * norm(a) * norm(b))) continue;
+    nrm = (1.0 / l) * nrm;
+    if (dot(nrm, centre - apex) < 0) nrm = -nrm;
+    out.push_back(nrm);
+  }
+}
+
 // Marks the receivers r whose line from image `img` (signed distance -ds
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
@@ -478,21 +498,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // Tighter: the pyramid from I1 through f1's convex outline, one plane
     // per outline edge (inward normals), padded by the on-face tolerance.
     pyramid.clear();
-    const std::uint32_t o0 = faces.outline_begin[f1], o1 = faces.outline_begin[f1 + 1];
-    if (o1 - o0 >= 3) {
-      Vec3 centre{0, 0, 0};
-      for (std::uint32_t k = o0; k < o1; ++k) centre = centre + faces.outline[k];
-      centre = (1.0 / (o1 - o0)) * centre;
-      for (std::uint32_t k = o0; k < o1; ++k) {
-        const Vec3 a = faces.outline[k] - i1, b = faces.outline[k + 1 < o1 ? k + 1 : o0] - i1;
-        Vec3 nrm = cross(a, b);
-        const double l = norm(nrm);
-        if (!(l > 1e-9 * norm(a) * norm(b))) continue;  // degenerate edge: no plane (conservative)
-        nrm = (1.0 / l) * nrm;
-        if (dot(nrm, centre - i1) < 0) nrm = -nrm;
-        pyramid.push_back(nrm);
-      }
-    }
+    outline_pyramid(faces, f1, i1, pyramid);
     // A reflection point accepted within tol of f1's outline moves the
     // continuation by up to tol times (distance / |ds|) at f2.
     // (`spread`: a node's faces lie up to its radius farther than its centre.)
@@ -686,6 +692,156 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
         if (!on_face(f, q2)) continue;
         const double d2 = dot(p1.normal, q2) - p1.offset;
         if (ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({r, {faces.refs[f1], faces.refs[f]}});
+      }
+    }
+  }
+  if (stats) {
+    stats->image_sources += local.image_sources;
+    stats->tests += local.tests;
+  }
+}
+
+void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                          std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
+                          const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
+                          ImageSearchStats* stats, bool skip_ground) {
+  if (beam_pairs.empty() || receivers.empty()) return;
+  ImageSearchStats local;
+  const Vec3 xs = nodes[src].position;
+  Receivers rx, scratch;
+  for (auto r : receivers) rx.push(nodes[r].position - xs);
+  scratch.n = rx.size();
+  scratch.pad();
+  auto on_face = [&](std::size_t f, const Vec3& p) {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  };
+  auto is_ground = [&](std::uint32_t f) { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); };
+  std::vector<Vec3> pyramid, mirrored;
+  std::vector<std::uint32_t> tree_stack, third_faces;
+  for (const auto& [f1, f2] : beam_pairs) {
+    // The images of the source in f1, then f2 (img[0] = the source), and
+    // each one's signed distance from the next face's plane.
+    std::array<Vec3, 3> img;
+    std::array<double, 2> dist{};
+    img[0] = xs;
+    bool ok = true;
+    for (int k = 0; k < 2 && ok; ++k) {
+      const Plane& pl = faces.planes[k == 0 ? f1 : f2];
+      dist[k] = dot(pl.normal, img[k]) - pl.offset;
+      ok = dist[k] != 0;
+      img[k + 1] = img[k] - (2 * dist[k]) * pl.normal;
+    }
+    if (!ok) continue;
+    ++local.image_sources;
+    const Plane& p1 = faces.planes[f1];
+    const Plane& p2 = faces.planes[f2];
+    // From the third reflection's point q3 back through f2 and f1.
+    auto back_through_f2_f1 = [&](const Vec3& q3) {
+      const double d3 = dot(p2.normal, q3) - p2.offset;
+      if (!(dist[1] * d3 > 0)) return false;
+      ++local.tests;
+      const Vec3 q2 = crossing(img[2], -dist[1], q3, d3);
+      if (!on_face(f2, q2)) return false;
+      const double d2 = dot(p1.normal, q2) - p1.offset;
+      return dist[0] * d2 > 0 && on_face(f1, crossing(img[1], -dist[0], q2, d2));
+    };
+    // The beam after f2: apex I2, inside the pyramid through f2's outline
+    // and inside f1's, mirrored in f2's plane (I1's image is I2), padded
+    // by both faces' on-face tolerances carried to the distance.
+    pyramid.clear();
+    outline_pyramid(faces, f2, img[2], pyramid);
+    mirrored.clear();
+    outline_pyramid(faces, f1, img[1], mirrored);
+    for (const auto& nrm : mirrored) pyramid.push_back(nrm - (2 * dot(p2.normal, nrm)) * p2.normal);
+    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(dist[0]) + 2 * faces.tol[f2] / std::fabs(dist[1]);
+    auto outside = [&](const TraceScene::Sphere& sp, double tol) {
+      const Vec3 w = sp.centre - img[2];
+      const double d = norm(w);
+      const double pad = spread_per_m * (d + sp.radius) + tol + 1e-6 * (d + sp.radius);
+      for (const auto& nrm : pyramid)
+        if (dot(nrm, w) < -(sp.radius + pad)) return true;
+      return false;
+    };
+    const int side = dist[1] > 0 ? 1 : -1;  // I1's side of f2: where the beam leaves it
+    auto behind = [&](const TraceScene::Sphere& sp) {
+      return side * (dot(p2.normal, sp.centre) - p2.offset) + sp.radius <= 0;
+    };
+
+    // Static third faces: down the sphere tree, in the beam and in front of
+    // f2. Three static faces with one on the ground are image_candidates'
+    // (ground_order3).
+    third_faces.clear();
+    if (!(skip_ground && (is_ground(f1) || is_ground(f2)))) {
+      tree_stack.assign(1, 0);
+      while (!tree_stack.empty()) {
+        const std::uint32_t at = tree_stack.back();
+        const auto& node = faces.static_tree[at];
+        tree_stack.pop_back();
+        if (behind(node.sphere) || outside(node.sphere, node.tol)) continue;
+        if (node.count == 0) {
+          tree_stack.push_back(node.right);
+          tree_stack.push_back(at + 1);
+          continue;
+        }
+        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
+          const std::uint32_t f3 = faces.static_order[k];
+          if (f3 == f2 || !scene.static_face_reaches(f2, side, f3) || outside(faces.spheres[f3], faces.tol[f3]))
+            continue;
+          if (skip_ground && is_ground(f3)) continue;
+          third_faces.push_back(f3);
+        }
+      }
+      std::sort(third_faces.begin(), third_faces.end());  // the output's order does not depend on the tree's
+    }
+    for (const std::uint32_t f3 : third_faces) {
+      // The third face's image, the receivers seen through it (a vectorised
+      // pass), then the walk back.
+      const Plane& p3 = faces.planes[f3];
+      const double d3 = dot(p3.normal, img[2]) - p3.offset;
+      if (d3 == 0) continue;
+      const Vec3 i3 = img[2] - (2 * d3) * p3.normal;
+      ++local.image_sources;
+      local.tests += rx.size();
+      const auto& s3 = faces.spheres[f3];
+      if (!mark_crossings(rx, 0, p3, p3.offset - dot(p3.normal, xs), d3, i3 - xs, s3, s3.centre - xs, faces.tol[f3],
+                          scratch))
+        continue;
+      for (std::size_t r = 0; r < rx.size(); ++r) {
+        if (!scratch.hit[r]) continue;
+        const Vec3 xr = nodes[receivers[r]].position;
+        const Vec3 q3 = crossing(i3, -d3, xr, dot(p3.normal, xr) - p3.offset);
+        if (on_face(f3, q3) && back_through_f2_f1(q3))
+          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f3]}});
+      }
+    }
+
+    // Vehicles in the beam: each face in the beam, by its image and a
+    // vectorised pass over the receivers (no normal index: the receivers
+    // riding the vehicle included), then the walk back.
+    for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) {
+      const auto& sv = faces.vehicle_spheres[v];
+      if (behind(sv) || outside(sv, 0)) continue;
+      for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f) {
+        const auto& sf = faces.spheres[f];
+        if (behind(sf) || outside(sf, faces.tol[f])) continue;
+        const Plane& pl = faces.planes[f];
+        const double df = dot(pl.normal, img[2]) - pl.offset;
+        if (df == 0) continue;
+        const Vec3 i3 = img[2] - (2 * df) * pl.normal;
+        ++local.image_sources;
+        local.tests += rx.size();
+        if (!mark_crossings(rx, 0, pl, pl.offset - dot(pl.normal, xs), df, i3 - xs, sf, sf.centre - xs, faces.tol[f],
+                            scratch))
+          continue;
+        for (std::size_t r = 0; r < rx.size(); ++r) {
+          if (!scratch.hit[r]) continue;
+          const Vec3 xr = nodes[receivers[r]].position;
+          const Vec3 q3 = crossing(i3, -df, xr, dot(pl.normal, xr) - pl.offset);
+          if (on_face(f, q3) && back_through_f2_f1(q3))
+            out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f]}});
+        }
       }
     }
   }

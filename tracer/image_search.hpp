@@ -113,4 +113,26 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
                              ImageSearchStats* stats = nullptr);
 
+// Two static faces that the shoot-and-bounce rays of one source reflect on
+// in that order: a beam the rays show is lit. Its third reflections, which
+// the rays' reception spheres miss (a wall's double echo arriving at
+// grazing angles, the small faces of a far car, a third wall the vehicles
+// hide from most of the beam's rays), are then enumerated exactly.
+struct BeamPair {
+  std::uint32_t f1 = 0, f2 = 0;  // static faces (ImageFaces' static indices)
+  auto operator<=>(const BeamPair&) const = default;
+};
+
+// The order-3 sequences (f1, f2, static face f3) and (f1, f2, any face of a
+// vehicle) of every listed pair from node `src` to each of `receivers`: f3
+// and the vehicles within the beam (the pyramid from the source's second
+// image through f2's outline and f1's mirrored in f2, walked down the
+// static sphere tree), their faces through their normals, each decided by
+// images and on-face tests. With `skip_ground`, not the static triples
+// with a ground face (image_candidates' ground_order3 has them).
+void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                          std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
+                          const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
+                          ImageSearchStats* stats = nullptr, bool skip_ground = false);
+
 }  // namespace raysweep::tracer

@@ -490,7 +490,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
                 const std::vector<Node>& nodes, std::uint32_t src, const std::vector<Vec3>& lattice,
                 std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays,
                 const DiffuseTargets* diffuse, DiffuseBins* diffuse_out, const ImageFaces* beam_faces = nullptr,
-                std::vector<BeamVehicle>* beams = nullptr) {
+                std::vector<BeamVehicle>* beams = nullptr, std::vector<BeamPair>* beam_pairs = nullptr) {
   const double spacing = std::sqrt(4 * kPi / static_cast<double>(lattice.size())) * cfg.reception_radius_factor;
   const bool scatter = diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty());
   const double d_omega = 4 * kPi / static_cast<double>(lattice.size());
@@ -599,6 +599,11 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           if (dot(q, q) <= reach * reach) beams->push_back({chain[st.last].face.face, v});
         }
       }
+      // After two reflections on static faces: their pair's beam is lit
+      // (BeamPair).
+      if (beam_pairs && st.n == 2 && chain[st.last].face.instance == 0 &&
+          chain[chain[st.last].parent].face.instance == 0)
+        beam_pairs->push_back({chain[chain[st.last].parent].face.face, chain[st.last].face.face});
       if (!got) continue;
       ++hit_no;
       const Vec3 p = st.o + hit.t * st.d;
@@ -806,6 +811,10 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
     std::sort(beams->begin(), beams->end());
     beams->erase(std::unique(beams->begin(), beams->end()), beams->end());
   }
+  if (beam_pairs) {
+    std::sort(beam_pairs->begin(), beam_pairs->end());
+    beam_pairs->erase(std::unique(beam_pairs->begin(), beam_pairs->end()), beam_pairs->end());
+  }
 }
 
 // Every sequence of faces up to max_depth, no face twice in a row.
@@ -1011,6 +1020,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       std::vector<CandidateKey> found;
       DiffuseBins bins;
       std::vector<BeamVehicle> beams;
+      std::vector<BeamPair> beam_pairs;
       std::uint64_t rays = 0;
     };
     std::vector<TaskOut> tasks(sources.size() * chunks);
@@ -1018,6 +1028,9 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     // exist, the image method enumerates their faces exactly.
     const bool beam_search = image && cfg.max_depth >= 2;
     std::vector<std::vector<BeamVehicle>> beams(beam_search ? n : 0);
+    // Two static faces, then a third or a vehicle (order 3).
+    const bool triple_search = beam_search && cfg.max_depth >= 3 && cfg.beam_order3;
+    std::vector<std::vector<BeamPair>> beam_pairs(triple_search ? n : 0);
     tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
       const auto src = sources[task / chunks];
       const std::size_t c = task % chunks;
@@ -1026,7 +1039,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       local.specular = sbr_specular;
       shoot_from(scene, em, local, nodes, src, lattice, c * chunk, std::min(lattice.size(), (c + 1) * chunk),
                  out.found, out.rays, ray_diffuse ? &targets[src] : nullptr, &out.bins, beam_search ? &faces : nullptr,
-                 beam_search ? &out.beams : nullptr);
+                 beam_search ? &out.beams : nullptr, triple_search ? &out.beam_pairs : nullptr);
       if (!sbr_specular) out.found.clear();
     });
     // Merged in task order, so the sums are the same for any thread count;
@@ -1102,6 +1115,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         auto& b = beams[sources[task / chunks]];
         b.insert(b.end(), tasks[task].beams.begin(), tasks[task].beams.end());
       }
+      if (triple_search) {
+        auto& b = beam_pairs[sources[task / chunks]];
+        b.insert(b.end(), tasks[task].beam_pairs.begin(), tasks[task].beam_pairs.end());
+      }
     }
     tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t t) { tasks[t] = TaskOut{}; });
     if (beam_search) {
@@ -1110,10 +1127,15 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       std::vector<ImageSearchStats> bstats(n);
       tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
         auto& b = beams[i];
-        if (b.empty() || partners[i].empty()) return;
+        if (partners[i].empty()) return;
         std::sort(b.begin(), b.end());
         b.erase(std::unique(b.begin(), b.end()), b.end());
         beam_vehicle_candidates(scene, faces, nodes, i, partners[i], b, found[i], &bstats[i]);
+        if (!triple_search) return;
+        auto& bp = beam_pairs[i];
+        std::sort(bp.begin(), bp.end());
+        bp.erase(std::unique(bp.begin(), bp.end()), bp.end());
+        beam_pair_candidates(scene, faces, nodes, i, bp, partners[i], found[i], &bstats[i], cfg.ground_order3);
       });
       for (std::uint32_t i = 0; i < n; ++i) {
         snap.stats.image_sources += bstats[i].image_sources;
