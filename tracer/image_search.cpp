@@ -720,7 +720,9 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
   auto is_ground = [&](std::uint32_t f) { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); };
   std::vector<Vec3> pyramid, mirrored;
   std::vector<std::uint32_t> tree_stack, third_faces;
-  for (const auto& [f1, f2] : beam_pairs) {
+  for (const BeamPair& bp : beam_pairs) {
+    // (Not a structured binding: clang before 16 cannot capture those.)
+    const std::uint32_t f1 = bp.f1, f2 = bp.f2;
     // The images of the source in f1, then f2 (img[0] = the source), and
     // each one's signed distance from the next face's plane.
     std::array<Vec3, 3> img;
