@@ -132,6 +132,8 @@ ImageFaces image_faces(const TraceScene& scene) {
   for (std::size_t v = 0; v < scene.vehicles().size(); ++v) t.vehicle_spheres.push_back(scene.vehicle_sphere(v));
   for (std::uint32_t f = 0; f < t.static_count; ++f)
     if (scene.is_ground(f)) t.ground.push_back(f);
+  for (std::uint32_t f = 0; f < t.static_count; ++f)
+    if (t.spheres[f].radius < ImageFaces::kSmallFace) t.small.push_back(f);
   std::vector<std::array<Vec3, 3>> tris;
   for (std::uint32_t f = 0; f < t.static_count; ++f) {
     t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));

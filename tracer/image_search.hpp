@@ -55,6 +55,12 @@ struct ImageFaces {
   std::vector<std::uint32_t> vehicle_begin;  // first face of vehicle v in refs (size vehicles + 1)
   std::vector<TraceScene::Sphere> vehicle_spheres;
   std::vector<std::uint32_t> ground;         // static faces that are ground (TraceScene::is_ground)
+  // Static faces of vehicle size or less (bounding radius under kSmallFace:
+  // a kerb-side box, a bus shelter's side): shoot and bounce's rays pass
+  // them as they pass vehicles, so BeamPair marks them by the same widened
+  // test, not only when a ray hits them.
+  static constexpr double kSmallFace = 2.5;
+  std::vector<std::uint32_t> small;
   // Static faces' convex outlines (world vertices, in order around the
   // face): the beam a face reflects is the pyramid from the image through it.
   std::vector<std::uint32_t> outline_begin;  // static faces + 1

@@ -600,10 +600,23 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         }
       }
       // After two reflections on static faces: their pair's beam is lit
-      // (BeamPair).
+      // (BeamPair); after one, so is the pair with a small static face the
+      // ray passes (widened as for the vehicles above: it may fall between
+      // rays).
       if (beam_pairs && st.n == 2 && chain[st.last].face.instance == 0 &&
           chain[chain[st.last].parent].face.instance == 0)
         beam_pairs->push_back({chain[chain[st.last].parent].face.face, chain[st.last].face.face});
+      if (beam_pairs && st.n == 1 && chain[st.last].face.instance == 0) {
+        const std::uint32_t f1 = chain[st.last].face.face;
+        const double tmax = std::min(tseg, 1e30);
+        for (const std::uint32_t f2 : beam_faces->small) {
+          const Vec3 c = beam_faces->spheres[f2].centre - st.o;
+          const double t = std::clamp(dot(c, st.d), 0.0, tmax);
+          const Vec3 q = c - t * st.d;
+          const double reach = beam_faces->spheres[f2].radius + beam_faces->tol[f2] + 2 * spacing * (st.len + t);
+          if (f2 != f1 && dot(q, q) <= reach * reach) beam_pairs->push_back({f1, f2});
+        }
+      }
       if (!got) continue;
       ++hit_no;
       const Vec3 p = st.o + hit.t * st.d;
