@@ -754,19 +754,31 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
     // The beam after f2: apex I2, inside the pyramid through f2's outline
     // and inside f1's, mirrored in f2's plane (I1's image is I2), padded
     // by both faces' on-face tolerances carried to the distance.
+    // (A vehicle face as f2 has no outline here: the cone through its
+    // sphere instead, narrow as vehicle faces are small.)
+    const bool f2_static = f2 < faces.static_count;
     pyramid.clear();
-    outline_pyramid(faces, f2, img[2], pyramid);
+    if (f2_static) outline_pyramid(faces, f2, img[2], pyramid);
     mirrored.clear();
     outline_pyramid(faces, f1, img[1], mirrored);
     for (const auto& nrm : mirrored) pyramid.push_back(nrm - (2 * dot(p2.normal, nrm)) * p2.normal);
     const double spread_per_m = 2 * faces.tol[f1] / std::fabs(dist[0]) + 2 * faces.tol[f2] / std::fabs(dist[1]);
+    Cone cone;
+    const bool narrow =
+        !f2_static &&
+        cone_to(img[2], TraceScene::Sphere{faces.spheres[f2].centre, faces.spheres[f2].radius + faces.tol[f2]}, cone);
     auto outside = [&](const TraceScene::Sphere& sp, double tol) {
       const Vec3 w = sp.centre - img[2];
       const double d = norm(w);
       const double pad = spread_per_m * (d + sp.radius) + tol + 1e-6 * (d + sp.radius);
       for (const auto& nrm : pyramid)
         if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      return false;
+      if (!narrow || d <= sp.radius + pad) return false;
+      Cone c;
+      c.axis = (1.0 / d) * w;
+      c.sin_h = (sp.radius + pad) / d;
+      c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
+      return !cones_overlap(cone, c);
     };
     const int side = dist[1] > 0 ? 1 : -1;  // I1's side of f2: where the beam leaves it
     auto behind = [&](const TraceScene::Sphere& sp) {
@@ -791,7 +803,8 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
         }
         for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
           const std::uint32_t f3 = faces.static_order[k];
-          if (f3 == f2 || !scene.static_face_reaches(f2, side, f3) || outside(faces.spheres[f3], faces.tol[f3]))
+          if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
+              outside(faces.spheres[f3], faces.tol[f3]))
             continue;
           if (skip_ground && is_ground(f3)) continue;
           third_faces.push_back(f3);
@@ -829,7 +842,7 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
       if (behind(sv) || outside(sv, 0)) continue;
       for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f) {
         const auto& sf = faces.spheres[f];
-        if (behind(sf) || outside(sf, faces.tol[f])) continue;
+        if (f == f2 || behind(sf) || outside(sf, faces.tol[f])) continue;
         const Plane& pl = faces.planes[f];
         const double df = dot(pl.normal, img[2]) - pl.offset;
         if (df == 0) continue;

@@ -125,7 +125,8 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
 // grazing angles, the small faces of a far car, a third wall the vehicles
 // hide from most of the beam's rays), are then enumerated exactly.
 struct BeamPair {
-  std::uint32_t f1 = 0, f2 = 0;  // static faces (ImageFaces' static indices)
+  std::uint32_t f1 = 0;  // a static face
+  std::uint32_t f2 = 0;  // a static face, or a vehicle face (ImageFaces' indices)
   auto operator<=>(const BeamPair&) const = default;
 };
 

@@ -603,9 +603,13 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       // (BeamPair); after one, so is the pair with a small static face the
       // ray passes (widened as for the vehicles above: it may fall between
       // rays).
-      if (beam_pairs && st.n == 2 && chain[st.last].face.instance == 0 &&
-          chain[chain[st.last].parent].face.instance == 0)
-        beam_pairs->push_back({chain[chain[st.last].parent].face.face, chain[st.last].face.face});
+      if (beam_pairs && st.n == 2 && chain[chain[st.last].parent].face.instance == 0) {
+        // The second face may be a vehicle's (a wall's echo off a car onto a
+        // wall): its index among ImageFaces' faces.
+        const FaceRef& f2 = chain[st.last].face;
+        beam_pairs->push_back({chain[chain[st.last].parent].face.face,
+                               f2.instance == 0 ? f2.face : beam_faces->vehicle_begin[f2.instance - 1] + f2.face});
+      }
       if (beam_pairs && st.n == 1 && chain[st.last].face.instance == 0) {
         const std::uint32_t f1 = chain[st.last].face.face;
         const double tmax = std::min(tseg, 1e30);
