@@ -836,8 +836,10 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
 
     // Vehicles in the beam: each face in the beam, by its image and a
     // vectorised pass over the receivers (no normal index: the receivers
-    // riding the vehicle included), then the walk back.
-    for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) {
+    // riding the vehicle included), then the walk back. Not after a
+    // vehicle face (two cars after a wall: +17 % of a 120-vehicle demo
+    // snapshot, and no such path missing on the snapshots measured).
+    for (std::uint32_t v = 0; f2_static && v < faces.vehicle_spheres.size(); ++v) {
       const auto& sv = faces.vehicle_spheres[v];
       if (behind(sv) || outside(sv, 0)) continue;
       for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f) {
