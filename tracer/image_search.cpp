@@ -255,6 +255,27 @@ unsigned mark_crossings_kernel(const double* __restrict x, const double* __restr
   return any != 0;
 }
 
+// Depth-first down the static faces' sphere tree: prune(sphere, tol) true
+// skips a node and everything below it (its sphere and tol bound theirs);
+// leaf(f) for each face of the leaves reached, in the tree's order.
+template <class Prune, class Leaf>
+void walk_static_tree(const ImageFaces& faces, std::vector<std::uint32_t>& stack, Prune&& prune, Leaf&& leaf) {
+  if (faces.static_tree.empty()) return;
+  stack.assign(1, 0);
+  while (!stack.empty()) {
+    const std::uint32_t at = stack.back();
+    stack.pop_back();
+    const auto& node = faces.static_tree[at];
+    if (prune(node.sphere, node.tol)) continue;
+    if (node.count == 0) {
+      stack.push_back(node.right);
+      stack.push_back(at + 1);
+      continue;
+    }
+    for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) leaf(faces.static_order[k]);
+  }
+}
+
 // The pyramid from `apex` through static face f's convex outline: one
 // plane through the apex per outline edge, as inward unit normals, appended
 // to `out` (none for a degenerate edge: conservative).
@@ -527,28 +548,19 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
     // the rest.
     auto walk_beam = [&](const Beam& b, const Plane& plane, double side, std::uint32_t from_face, auto&& leaf) {
-      tree_stack.clear();
-      tree_stack.push_back(0);
-      while (!tree_stack.empty()) {
-        const auto& node = faces.static_tree[tree_stack.back()];
-        const std::uint32_t at = tree_stack.back();
-        tree_stack.pop_back();
-        const double h = dot(plane.normal, node.sphere.centre) - plane.offset;
-        if ((side > 0 ? h : -h) + node.sphere.radius <= 0) continue;  // wholly behind: no face reaches
-        if (outside_beam(b, node.sphere, node.tol, node.sphere.radius)) continue;
-        if (node.count == 0) {
-          tree_stack.push_back(node.right);
-          tree_stack.push_back(at + 1);
-          continue;
-        }
-        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
-          const std::uint32_t f2 = faces.static_order[k];
-          // f2 must reach the side the beam leaves from_face on.
-          if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) continue;
-          if (outside_beam(b, faces.spheres[f2], faces.tol[f2], 0)) continue;
-          leaf(f2);
-        }
-      }
+      walk_static_tree(
+          faces, tree_stack,
+          [&](const TraceScene::Sphere& sp, double tol) {
+            const double h = dot(plane.normal, sp.centre) - plane.offset;
+            if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
+            return outside_beam(b, sp, tol, sp.radius);
+          },
+          [&](std::uint32_t f2) {
+            // f2 must reach the side the beam leaves from_face on.
+            if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
+            if (outside_beam(b, faces.spheres[f2], faces.tol[f2], 0)) return;
+            leaf(f2);
+          });
     };
     // The image I2 of `apex` in f2 (di: the apex's distance from f2's
     // plane); false when the apex lies on it.
@@ -790,27 +802,26 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
     // (ground_order3).
     third_faces.clear();
     if (!(skip_ground && (is_ground(f1) || is_ground(f2)))) {
-      tree_stack.assign(1, 0);
-      while (!tree_stack.empty()) {
-        const std::uint32_t at = tree_stack.back();
-        const auto& node = faces.static_tree[at];
-        tree_stack.pop_back();
-        if (behind(node.sphere) || outside(node.sphere, node.tol)) continue;
-        if (node.count == 0) {
-          tree_stack.push_back(node.right);
-          tree_stack.push_back(at + 1);
-          continue;
-        }
-        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) {
-          const std::uint32_t f3 = faces.static_order[k];
-          if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
-              outside(faces.spheres[f3], faces.tol[f3]))
-            continue;
-          if (skip_ground && is_ground(f3)) continue;
-          third_faces.push_back(f3);
-        }
-      }
+      walk_static_tree(
+          faces, tree_stack,
+          [&](const TraceScene::Sphere& sp, double tol) { return behind(sp) || outside(sp, tol); },
+          [&](std::uint32_t f3) {
+            if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
+                outside(faces.spheres[f3], faces.tol[f3]))
+              return;
+            if (skip_ground && is_ground(f3)) return;
+            third_faces.push_back(f3);
+          });
       std::sort(third_faces.begin(), third_faces.end());  // the output's order does not depend on the tree's
+    }
+    // Vehicles in the beam: each of their faces in it (no normal index:
+    // the receivers riding the vehicle included). Not after a vehicle face
+    // (two cars after a wall: +17 % of a 120-vehicle demo snapshot, and no
+    // such path missing on the snapshots measured).
+    for (std::uint32_t v = 0; f2_static && v < faces.vehicle_spheres.size(); ++v) {
+      if (behind(faces.vehicle_spheres[v]) || outside(faces.vehicle_spheres[v], 0)) continue;
+      for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f)
+        if (f != f2 && !behind(faces.spheres[f]) && !outside(faces.spheres[f], faces.tol[f])) third_faces.push_back(f);
     }
     for (const std::uint32_t f3 : third_faces) {
       // The third face's image, the receivers seen through it (a vectorised
@@ -831,36 +842,6 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
         const Vec3 q3 = crossing(i3, -d3, xr, dot(p3.normal, xr) - p3.offset);
         if (on_face(f3, q3) && back_through_f2_f1(q3))
           out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f3]}});
-      }
-    }
-
-    // Vehicles in the beam: each face in the beam, by its image and a
-    // vectorised pass over the receivers (no normal index: the receivers
-    // riding the vehicle included), then the walk back. Not after a
-    // vehicle face (two cars after a wall: +17 % of a 120-vehicle demo
-    // snapshot, and no such path missing on the snapshots measured).
-    for (std::uint32_t v = 0; f2_static && v < faces.vehicle_spheres.size(); ++v) {
-      const auto& sv = faces.vehicle_spheres[v];
-      if (behind(sv) || outside(sv, 0)) continue;
-      for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f) {
-        const auto& sf = faces.spheres[f];
-        if (f == f2 || behind(sf) || outside(sf, faces.tol[f])) continue;
-        const Plane& pl = faces.planes[f];
-        const double df = dot(pl.normal, img[2]) - pl.offset;
-        if (df == 0) continue;
-        const Vec3 i3 = img[2] - (2 * df) * pl.normal;
-        ++local.image_sources;
-        local.tests += rx.size();
-        if (!mark_crossings(rx, 0, pl, pl.offset - dot(pl.normal, xs), df, i3 - xs, sf, sf.centre - xs, faces.tol[f],
-                            scratch))
-          continue;
-        for (std::size_t r = 0; r < rx.size(); ++r) {
-          if (!scratch.hit[r]) continue;
-          const Vec3 xr = nodes[receivers[r]].position;
-          const Vec3 q3 = crossing(i3, -df, xr, dot(pl.normal, xr) - pl.offset);
-          if (on_face(f, q3) && back_through_f2_f1(q3))
-            out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f]}});
-        }
       }
     }
   }
