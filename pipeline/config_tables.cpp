@@ -392,8 +392,8 @@ const Table<TraceSettings>& tracer_table() {
           "image search: three reflections among static faces with one on the ground (wall, ground, wall; the "
           "ground first or last)");
     t.key("beam_order3", boolean(), FIELD(tracer.beam_order3), "",
-          "image search: three reflections beginning on two static faces the rays light (then a wall or a "
-          "vehicle), the third face from their beam");
+          "image search: three reflections beginning on a static face and a second face the rays light "
+          "(a wall or a vehicle's), the third face from their beam");
     t.key("diffraction", boolean(), FIELD(tracer.diffraction), "", "first-order UTD edge diffraction on the static scene");
     t.key("vehicle_diffraction", boolean(), FIELD(tracer.vehicle_diffraction), "",
           "vehicles in the first Fresnel zone: P.526 knife-edge loss on the direct path");

@@ -95,11 +95,11 @@ struct TracerConfig {
   // ground (wall, ground, wall; the ground first or last), exactly. Off:
   // those come from shoot and bounce alone.
   bool ground_order3 = true;
-  // Image search: three reflections that begin on two static faces (wall,
-  // wall, then a wall or a vehicle; BeamPair). The pairs come from the
-  // shoot-and-bounce rays that reflect on both (the beam is lit), the third
-  // face from the pair's beam, exactly. Off: those come from shoot and
-  // bounce alone.
+  // Image search: three reflections that begin on a static face (wall,
+  // wall or car, then a wall or a car; BeamPair). The first two faces come
+  // from the shoot-and-bounce rays that reflect on both (the beam is lit;
+  // a small static face also when a ray passes it), the third from the
+  // pair's beam, exactly. Off: those come from shoot and bounce alone.
   bool beam_order3 = true;
   // Tiles: the finest tile's longest edge (m: where shadow edges are
   // resolved), and the largest tile used relative to its distance from the

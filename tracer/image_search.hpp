@@ -17,6 +17,8 @@
 // antenna's own included) is enumerated the same way for the (face, vehicle)
 // combinations the shoot-and-bounce rays' beams reach (BeamVehicle, below):
 // the rays sample a wall densely where they miss a small, far car's faces.
+//   order 3 beginning on a static face: the lit beam pairs of the rays
+//            (BeamPair, below), their third faces exactly.
 //   orders 2 and 3 on one vehicle (its concave corners, its cabin through
 //            the windows): the sequences the model's table lists for the
 //            direction the wave arrives from (TraceScene::
@@ -119,23 +121,26 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
                              ImageSearchStats* stats = nullptr);
 
-// Two static faces that the shoot-and-bounce rays of one source reflect on
-// in that order: a beam the rays show is lit. Its third reflections, which
-// the rays' reception spheres miss (a wall's double echo arriving at
-// grazing angles, the small faces of a far car, a third wall the vehicles
-// hide from most of the beam's rays), are then enumerated exactly.
+// A static face, then a face (static or a vehicle's) that the shoot-and-
+// bounce rays of one source reflect on in that order, or a small static face
+// they pass after the first: a beam the rays show is lit. Its third
+// reflections, which the rays' reception spheres miss (a wall's double echo
+// arriving at grazing angles, the small faces of a far car, a third wall
+// the vehicles hide from most of the beam's rays), are then enumerated
+// exactly.
 struct BeamPair {
   std::uint32_t f1 = 0;  // a static face
   std::uint32_t f2 = 0;  // a static face, or a vehicle face (ImageFaces' indices)
   auto operator<=>(const BeamPair&) const = default;
 };
 
-// The order-3 sequences (f1, f2, static face f3) and (f1, f2, any face of a
-// vehicle) of every listed pair from node `src` to each of `receivers`: f3
-// and the vehicles within the beam (the pyramid from the source's second
-// image through f2's outline and f1's mirrored in f2, walked down the
-// static sphere tree), their faces through their normals, each decided by
-// images and on-face tests. With `skip_ground`, not the static triples
+// The order-3 sequences (f1, f2, f3) of every listed pair from node `src`
+// to each of `receivers`: every static face f3 in the beam after f2 (apex
+// the source's second image; the pyramid through f2's outline, or for a
+// vehicle face the cone through its sphere, inside f1's pyramid mirrored in
+// f2; walked down the static sphere tree) and, after a static f2, every
+// vehicle face in it, each decided by its image, a vectorised pass over the
+// receivers and on-face tests. With `skip_ground`, not the static triples
 // with a ground face (image_candidates' ground_order3 has them).
 void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                           std::uint32_t src, const std::vector<BeamPair>& beam_pairs,

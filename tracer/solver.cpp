@@ -584,25 +584,28 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           if (seen.insert(key).second) out.push_back(key);
         }
       }
+      // Whether this segment passes within `radius` of `centre`, widened by
+      // twice the ray spacing at that distance (what it may miss between
+      // rays: a vehicle, a small face).
+      const double seg_end = std::min(tseg, 1e30);
+      auto passes = [&](const Vec3& centre, double radius) {
+        const Vec3 c = centre - st.o;
+        const double t = std::clamp(dot(c, st.d), 0.0, seg_end);
+        const Vec3 q = c - t * st.d;
+        const double reach = radius + 2 * spacing * (st.len + t);
+        return dot(q, q) <= reach * reach;
+      };
       // After one reflection on a static face: the vehicles this ray passes
-      // (within their sphere, widened by twice the ray spacing at that
-      // distance) are in that face's beam (BeamVehicle).
+      // are in that face's beam (BeamVehicle).
       if (beams && st.n == 1 && chain[st.last].face.instance == 0 &&
           !std::binary_search(beam_faces->ground.begin(), beam_faces->ground.end(), chain[st.last].face.face)) {
         const auto& spheres = beam_faces->vehicle_spheres;
-        const double tmax = std::min(tseg, 1e30);
-        for (std::uint32_t v = 0; v < spheres.size(); ++v) {
-          const Vec3 c = spheres[v].centre - st.o;
-          const double t = std::clamp(dot(c, st.d), 0.0, tmax);
-          const Vec3 q = c - t * st.d;
-          const double reach = spheres[v].radius + 2 * spacing * (st.len + t);
-          if (dot(q, q) <= reach * reach) beams->push_back({chain[st.last].face.face, v});
-        }
+        for (std::uint32_t v = 0; v < spheres.size(); ++v)
+          if (passes(spheres[v].centre, spheres[v].radius)) beams->push_back({chain[st.last].face.face, v});
       }
-      // After two reflections on static faces: their pair's beam is lit
-      // (BeamPair); after one, so is the pair with a small static face the
-      // ray passes (widened as for the vehicles above: it may fall between
-      // rays).
+      // After two reflections, the first on a static face: their pair's beam
+      // is lit (BeamPair); after one, so is the pair with a small static face
+      // the ray passes.
       if (beam_pairs && st.n == 2 && chain[chain[st.last].parent].face.instance == 0) {
         // The second face may be a vehicle's (a wall's echo off a car onto a
         // wall): its index among ImageFaces' faces.
@@ -612,14 +615,9 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       }
       if (beam_pairs && st.n == 1 && chain[st.last].face.instance == 0) {
         const std::uint32_t f1 = chain[st.last].face.face;
-        const double tmax = std::min(tseg, 1e30);
-        for (const std::uint32_t f2 : beam_faces->small) {
-          const Vec3 c = beam_faces->spheres[f2].centre - st.o;
-          const double t = std::clamp(dot(c, st.d), 0.0, tmax);
-          const Vec3 q = c - t * st.d;
-          const double reach = beam_faces->spheres[f2].radius + beam_faces->tol[f2] + 2 * spacing * (st.len + t);
-          if (f2 != f1 && dot(q, q) <= reach * reach) beam_pairs->push_back({f1, f2});
-        }
+        for (const std::uint32_t f2 : beam_faces->small)
+          if (f2 != f1 && passes(beam_faces->spheres[f2].centre, beam_faces->spheres[f2].radius + beam_faces->tol[f2]))
+            beam_pairs->push_back({f1, f2});
       }
       if (!got) continue;
       ++hit_no;
@@ -1045,7 +1043,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     // exist, the image method enumerates their faces exactly.
     const bool beam_search = image && cfg.max_depth >= 2;
     std::vector<std::vector<BeamVehicle>> beams(beam_search ? n : 0);
-    // Two static faces, then a third or a vehicle (order 3).
+    // A static face, then a static or vehicle face, then the third (order 3).
     const bool triple_search = beam_search && cfg.max_depth >= 3 && cfg.beam_order3;
     std::vector<std::vector<BeamPair>> beam_pairs(triple_search ? n : 0);
     tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
