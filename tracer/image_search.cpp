@@ -173,21 +173,31 @@ namespace {
 // b are within asin(R / distance) of those from its centre, and the face
 // normal within delta of their bisector (sin delta <= (alpha + beta) / |u_a + u_b|).
 // With an end inside the sphere every face is returned (cos_delta = -1).
-const std::vector<std::uint32_t>& faces_towards(const TraceScene& scene, const TraceScene::Sphere& sv, std::size_t v,
-                                                const Vec3& a, const Vec3& b, Vec3& bisector, double& cos_delta) {
+// The window itself (its half-angle's cosine and sine): false (any face,
+// cos_delta = -1) when it is void.
+bool normal_window(const TraceScene::Sphere& sv, const Vec3& a, const Vec3& b, Vec3& bisector, double& cos_delta,
+                   double& sin_delta) {
   const Vec3 wa = a - sv.centre, wb = b - sv.centre;
   const double da = norm(wa), db = norm(wb);
   cos_delta = -1;
+  sin_delta = 1;
   bisector = Vec3{0, 0, 1};
-  if (da <= sv.radius || db <= sv.radius) return scene.vehicle_faces_near_normal(v, bisector, 10.0);
+  if (da <= sv.radius || db <= sv.radius) return false;
   const Vec3 m = (1.0 / da) * wa + (1.0 / db) * wb;
   const double lm = norm(m);
   // asin(x) <= x pi / 2 on [0, 1].
   const double eps = (kPi / 2) * (sv.radius / da + sv.radius / db);
-  if (eps >= lm) return scene.vehicle_faces_near_normal(v, bisector, 10.0);
+  if (eps >= lm) return false;
   bisector = (1.0 / lm) * m;
-  const double sin_delta = eps / lm;
+  sin_delta = eps / lm;
   cos_delta = std::sqrt(1 - sin_delta * sin_delta);
+  return true;
+}
+const std::vector<std::uint32_t>& faces_towards(const TraceScene& scene, const TraceScene::Sphere& sv, std::size_t v,
+                                                const Vec3& a, const Vec3& b, Vec3& bisector, double& cos_delta) {
+  double sin_delta;
+  if (!normal_window(sv, a, b, bisector, cos_delta, sin_delta))
+    return scene.vehicle_faces_near_normal(v, bisector, 10.0);
   return scene.vehicle_faces_near_normal(v, bisector, std::asin(sin_delta));
 }
 
@@ -668,7 +678,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats) {
+                             ImageSearchStats* stats, bool ground_last) {
   if (combos.empty() || receivers.empty()) return;
   ImageSearchStats local;
   const Vec3 xs = nodes[src].position;
@@ -677,6 +687,32 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     const double rr = faces.spheres[f].radius + faces.tol[f];
     return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
   };
+  // Each receiver's images in the ground faces (for the ground last).
+  struct Mirrored {
+    std::uint32_t k;  // index into faces.ground
+    Vec3 x;
+  };
+  std::vector<std::vector<Mirrored>> mirrored(ground_last ? receivers.size() : 0);
+  for (std::size_t r = 0; r < mirrored.size(); ++r)
+    for (std::uint32_t k = 0; k < faces.ground.size(); ++k) {
+      const Plane& pg = faces.planes[faces.ground[k]];
+      const Vec3 xr = nodes[receivers[r]].position;
+      const double d = dot(pg.normal, xr) - pg.offset;
+      if (d != 0) mirrored[r].push_back({k, xr - (2 * d) * pg.normal});
+    }
+  std::vector<Vec3> pyramid, pyramid_g;
+  std::vector<char> between(faces.ground.size());
+  std::vector<Vec3> i1g(faces.ground.size());
+  static const std::vector<Mirrored> no_mirrored;
+  enum class Kind { echo, between, last };
+  struct Variant {
+    Kind kind;
+    std::uint32_t k;  // ground index (between, last)
+    Vec3 from, to;    // the image before the car, and the point after it
+    Vec3 bisector{0, 0, 1};
+    double cos_delta = -1, sin_delta = 1;
+  };
+  std::vector<Variant> variants;
   for (const auto& [f1, v] : combos) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
@@ -685,33 +721,143 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     const auto& sv = faces.vehicle_spheres[v];
     const double h = dot(p1.normal, sv.centre) - p1.offset;
     if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side of f1
+    // The rays' widened test is loose: the vehicle must meet f1's beam, the
+    // pyramid from I1 through f1's outline (padded by the on-face
+    // tolerance carried to the distance); with the ground between, that
+    // pyramid mirrored in the ground.
+    pyramid.clear();
+    outline_pyramid(faces, f1, i1, pyramid);
+    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
+    auto meets = [&](const Vec3& apex, const std::vector<Vec3>& planes) {
+      const Vec3 w = sv.centre - apex;
+      const double d = norm(w);
+      const double reach = sv.radius + (spread_per_m + 1e-6) * (d + sv.radius);
+      for (const auto& nrm : planes)
+        if (dot(nrm, w) < -reach) return false;
+      return true;
+    };
+    const bool direct = meets(i1, pyramid);
+    // The reflection on vehicle face f for one variant, then the way back
+    // through the ground (if any) to f1; appended when every point lies on
+    // its face.
+    auto try_face = [&](const Variant& w, std::size_t f, std::uint32_t r) {
+      const Plane& pl = faces.planes[f];
+      const double df = dot(pl.normal, w.from) - pl.offset, d = dot(pl.normal, w.to) - pl.offset;
+      if (!(df * d > 0)) return;
+      ++local.tests;
+      const Vec3 q = crossing(w.from - (2 * df) * pl.normal, -df, w.to, d);
+      if (!on_face(f, q)) return;
+      Vec3 back = q;  // the point the line from I1 must reach through f1
+      const std::uint32_t g = w.kind == Kind::echo ? 0 : faces.ground[w.k];
+      if (w.kind != Kind::echo) {
+        const Plane& pg = faces.planes[g];
+        const double dq = dot(pg.normal, q) - pg.offset;
+        if (w.kind == Kind::between) {
+          // From I1's image (below the ground, I1 above) to q above it.
+          const double dg = dot(pg.normal, w.from) - pg.offset;
+          if (!(dg * dq < 0)) return;
+          back = crossing(w.from, dg, q, dq);
+          if (!on_face(g, back)) return;
+        } else {
+          // From q down to the ground, then up to the receiver.
+          const Vec3 xr = nodes[r].position;
+          const double dr = dot(pg.normal, xr) - pg.offset;
+          if (!(dq * dr > 0) || !on_face(g, crossing(w.to, -dr, q, dq))) return;
+        }
+      }
+      const double d1 = dot(p1.normal, back) - p1.offset;
+      if (!(ds * d1 > 0) || !on_face(f1, crossing(i1, -ds, back, d1))) return;
+      switch (w.kind) {
+        case Kind::echo: out.push_back({r, {faces.refs[f1], faces.refs[f]}}); break;
+        case Kind::between: out.push_back({r, {faces.refs[f1], faces.refs[g], faces.refs[f]}}); break;
+        case Kind::last: out.push_back({r, {faces.refs[f1], faces.refs[f], faces.refs[g]}}); break;
+      }
+    };
+    bool any_between = false;
+    for (std::uint32_t k = 0; k < between.size() && !mirrored.empty(); ++k) {
+      const Plane& pg = faces.planes[faces.ground[k]];
+      const double dg = dot(pg.normal, i1) - pg.offset, hg = dot(pg.normal, sv.centre) - pg.offset;
+      between[k] = faces.ground[k] != f1 && dg != 0 && (dg > 0 ? hg + sv.radius > 0 : hg - sv.radius < 0);
+      if (!between[k]) continue;
+      pyramid_g.clear();
+      for (const auto& nrm : pyramid) pyramid_g.push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
+      between[k] = meets(i1 - (2 * dg) * pg.normal, pyramid_g);
+      any_between |= between[k] != 0;
+    }
+    if (!direct && !any_between) continue;
     ++local.image_sources;
-    for (auto r : receivers) {
+    // The images the paths unfold from: I1, and for the ground between,
+    // I1's image in each ground face.
+    for (std::uint32_t k = 0; k < between.size(); ++k)
+      if (between[k]) {
+        const Plane& pg = faces.planes[faces.ground[k]];
+        i1g[k] = i1 - (2 * (dot(pg.normal, i1) - pg.offset)) * pg.normal;
+      }
+    for (std::size_t ri = 0; ri < receivers.size(); ++ri) {
+      const std::uint32_t r = receivers[ri];
       const Vec3 xr = nodes[r].position;
-      Vec3 m;
-      double cos_delta = -1;
+      // The wall's echo off the car (W-V), the ground between (W-G-V) and
+      // the ground last (W-V-G, towards the receiver's image in the
+      // ground): each its own normal window, all from one table lookup
+      // around the first window wide enough to hold the others (the
+      // lookup, not the face tests, is what these cost).
+      variants.clear();
+      const std::vector<std::uint32_t>* mount =
+          static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
+      if (direct && !mount) variants.push_back({Kind::echo, 0, i1, xr});
+      for (const auto& [k, xm] : ground_last ? mirrored[ri] : no_mirrored) {
+        if (between[k]) variants.push_back({Kind::between, k, i1g[k], xr});
+        if (direct && faces.ground[k] != f1) variants.push_back({Kind::last, k, i1, xm});
+      }
       // The receiver's own vehicle: the faces its mount sees (the normal
       // bound is void inside the sphere).
-      const std::vector<std::uint32_t>* list =
-          static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
-      if (!list) list = &faces_towards(scene, sv, v, i1, xr, m, cos_delta);
-      for (auto lf : *list) {
+      if (direct && mount)
+        for (auto lf : *mount) try_face(Variant{Kind::echo, 0, i1, xr}, faces.vehicle_begin[v] + lf, r);
+      if (variants.empty()) continue;
+      bool all = false;
+      for (auto& w : variants) all |= !normal_window(sv, w.from, w.to, w.bisector, w.cos_delta, w.sin_delta);
+      double angle = 10.0;  // every face
+      if (!all) {
+        // Bounds without inverse trigonometry: an angle is at most pi / 2
+        // times its chord (or its sine).
+        angle = 0;
+        for (const auto& w : variants) {
+          const double c = dot(variants[0].bisector, w.bisector);
+          const Vec3 chord = w.bisector - (c < 0 ? -1.0 : 1.0) * variants[0].bisector;
+          angle = std::max(angle, (kPi / 2) * (norm(chord) + w.sin_delta));
+        }
+      }
+      for (auto lf : scene.vehicle_faces_near_normal(v, variants[0].bisector, angle)) {
         const std::size_t f = faces.vehicle_begin[v] + lf;
-        const Plane& pl = faces.planes[f];
-        if (cos_delta > -1 && std::fabs(dot(pl.normal, m)) < cos_delta - 1e-12) continue;
-        const double df = dot(pl.normal, i1) - pl.offset, d = dot(pl.normal, xr) - pl.offset;
-        if (!(df * d > 0)) continue;
-        ++local.tests;
-        const Vec3 q2 = crossing(i1 - (2 * df) * pl.normal, -df, xr, d);
-        if (!on_face(f, q2)) continue;
-        const double d2 = dot(p1.normal, q2) - p1.offset;
-        if (ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2))) out.push_back({r, {faces.refs[f1], faces.refs[f]}});
+        const Vec3& n = faces.planes[f].normal;
+        for (const auto& w : variants)
+          if (w.cos_delta <= -1 || std::fabs(dot(n, w.bisector)) >= w.cos_delta - 1e-12) try_face(w, f, r);
       }
     }
   }
   if (stats) {
     stats->image_sources += local.image_sources;
     stats->tests += local.tests;
+  }
+}
+
+void small_face_beams(const ImageFaces& faces, const Vec3& src, std::vector<BeamVehicle>& combos) {
+  for (const std::uint32_t f : faces.small) {
+    const Plane& pl = faces.planes[f];
+    const double ds = dot(pl.normal, src) - pl.offset;
+    if (ds == 0) continue;
+    const Vec3 i1 = src - (2 * ds) * pl.normal;
+    Cone beam;
+    const bool narrow =
+        cone_to(i1, TraceScene::Sphere{faces.spheres[f].centre, faces.spheres[f].radius + faces.tol[f]}, beam);
+    for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) {
+      const auto& sv = faces.vehicle_spheres[v];
+      const double h = dot(pl.normal, sv.centre) - pl.offset;
+      if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // behind the face
+      Cone c;
+      if (narrow && cone_to(i1, sv, c) && !cones_overlap(beam, c)) continue;
+      combos.push_back({f, v});
+    }
   }
 }
 
@@ -799,9 +945,10 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
 
     // Static third faces: down the sphere tree, in the beam and in front of
     // f2. Three static faces with one on the ground are image_candidates'
-    // (ground_order3).
+    // (ground_order3); after a vehicle face the ground is this search's.
+    const bool skip = skip_ground && f2_static;
     third_faces.clear();
-    if (!(skip_ground && (is_ground(f1) || is_ground(f2)))) {
+    if (!(skip && (is_ground(f1) || is_ground(f2)))) {
       walk_static_tree(
           faces, tree_stack,
           [&](const TraceScene::Sphere& sp, double tol) { return behind(sp) || outside(sp, tol); },
@@ -809,7 +956,7 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
             if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
                 outside(faces.spheres[f3], faces.tol[f3]))
               return;
-            if (skip_ground && is_ground(f3)) return;
+            if (skip && is_ground(f3)) return;
             third_faces.push_back(f3);
           });
       std::sort(third_faces.begin(), third_faces.end());  // the output's order does not depend on the tree's

@@ -119,7 +119,14 @@ struct BeamVehicle {
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats = nullptr);
+                             ImageSearchStats* stats = nullptr, bool ground_last = false);
+
+// The combinations (small static face, vehicle) that can exist from `src`,
+// exactly: every vehicle in the cone from the source's image through the
+// face (a strip of a building's corner, a kerb-side box: the rays reflect on
+// it too seldom to show which vehicles its beam reaches). Appended to
+// `combos` (unsorted).
+void small_face_beams(const ImageFaces& faces, const Vec3& src, std::vector<BeamVehicle>& combos);
 
 // A static face, then a face (static or a vehicle's) that the shoot-and-
 // bounce rays of one source reflect on in that order, or a small static face

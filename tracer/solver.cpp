@@ -1143,9 +1143,11 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
         auto& b = beams[i];
         if (partners[i].empty()) return;
+        small_face_beams(faces, nodes[i].position, b);
         std::sort(b.begin(), b.end());
         b.erase(std::unique(b.begin(), b.end()), b.end());
-        beam_vehicle_candidates(scene, faces, nodes, i, partners[i], b, found[i], &bstats[i]);
+        beam_vehicle_candidates(scene, faces, nodes, i, partners[i], b, found[i], &bstats[i],
+                                cfg.ground_order3 && cfg.max_depth >= 3);
         if (!triple_search) return;
         auto& bp = beam_pairs[i];
         std::sort(bp.begin(), bp.end());
