@@ -23,6 +23,8 @@ using nlohmann::json;
 
 namespace {
 
+void add_bumped_block(raysweep::meshkit::Scene& s, double x0, double bump, const std::string& name);
+
 // Scene folder, vehicle library, FCD and config in `dir`.
 struct Inputs {
   fs::path scene, vehicles, fcd, config;
@@ -41,6 +43,9 @@ Inputs make_inputs(const fs::path& dir) {
   add_box_object(s, {0, 8, 0}, {25, 18, 9}, "brick", "way/2");
   add_box_object(s, {-30, -22, 0}, {5, -9, 15}, "concrete", "way/3");
   add_box_object(s, {15, -20, 0}, {40, -10, 6}, "glass", "way/4");
+  // Past the street's end, a roof that simplification flattens (the
+  // static rows need an object they change).
+  add_bumped_block(s, 60, 0.3, "way/5");
   fs::create_directories(in.scene);
   raysweep::meshkit::write_glb(s, (in.scene / "scene.glb").string());
 
@@ -260,14 +265,16 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   const fs::path out = dir / "out";
   // Built-in models (no library): no LOD variant; one snapshot; custom lists.
   auto r = run_raysweep("tradeoff --scene " + in.scene.string() + " --fcd " + in.fcd.string() + " --config " +
-                        in.config.string() + " --rays 512 --depths 0,1 --simplify 1 --snapshots 1 "
+                        in.config.string() + " --rays 512 --depths 0,1 --simplify 0.1,1 --snapshots 1 "
                         "--reference-rays 2048 --reference-depth 2 --no-chart --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
   // reference, r512 d0, r512 d1, four toggles, all mechanisms and the
-  // sampled search around r512 d1, static 1m.
+  // sampled search around r512 d1, static 1m. Not static 0.1m: it changes
+  // no object (the default's scene; its row would chart timer noise).
   ASSERT_EQ(rows.size(), 10u);
+  EXPECT_NE(r.output.find("static 0.1m leaves every object as it is"), std::string::npos) << r.output;
   EXPECT_EQ(rows[0].at("rays"), "2048");
   EXPECT_EQ(rows[0].at("depth"), "2");
   EXPECT_EQ(rows[1].at("label"), "r512 d0");
