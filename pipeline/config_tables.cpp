@@ -389,8 +389,8 @@ const Table<TraceSettings>& tracer_table() {
     t.key("vehicle_multi_bounce", boolean(), FIELD(tracer.vehicle_multi_bounce), "",
           "image search: two and three reflections on one vehicle from a per-model table of multi-bounce sequences");
     t.key("ground_order3", boolean(), FIELD(tracer.ground_order3), "",
-          "image search: three reflections among static faces with one on the ground (wall, ground, wall; the "
-          "ground first or last)");
+          "image search: three reflections with one on the ground, exactly: among static faces (wall, ground, "
+          "wall; the ground first or last), and a wall, a vehicle and the ground in any order");
     t.key("beam_order3", boolean(), FIELD(tracer.beam_order3), "",
           "image search: three reflections beginning on a static face and a second face the rays light "
           "(a wall or a vehicle's), the third face from their beam");

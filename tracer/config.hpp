@@ -91,9 +91,10 @@ struct TracerConfig {
   // multi-bounce sequences (TraceScene::vehicle_bounce_sequences). Off:
   // those come from shoot and bounce alone.
   bool vehicle_multi_bounce = true;
-  // Image search: three reflections among static faces with one on the
-  // ground (wall, ground, wall; the ground first or last), exactly. Off:
-  // those come from shoot and bounce alone.
+  // Image search: three reflections with one on the ground, exactly: among
+  // static faces (wall, ground, wall; the ground first or last), and a wall,
+  // a vehicle and the ground in any order (the vehicles from the rays' wall-
+  // vehicle combinations). Off: those come from shoot and bounce alone.
   bool ground_order3 = true;
   // Image search: three reflections that begin on a static face (wall,
   // wall or car, then a wall or a car; BeamPair). The first two faces come
