@@ -48,6 +48,23 @@ std::vector<PathKey> keys(const tracer::PairResult& p) {
   return k;
 }
 
+// The objects a path reflects on, in order, and whether it crosses a
+// building (a refraction on anything but a vehicle).
+struct Reflections {
+  std::vector<std::string> objects;
+  bool through_building = false;
+};
+template <class Path>
+Reflections reflections(const Path& path, const std::vector<std::string>& names) {
+  Reflections r;
+  for (const auto& it : path.interactions) {
+    const std::string& n = names[it.object];
+    if (it.type == tracer::InteractionType::specular) r.objects.push_back(n);
+    r.through_building |= it.type == tracer::InteractionType::refraction && n.rfind("vehicle/", 0) != 0;
+  }
+  return r;
+}
+
 // Every path of `reference` up to `order` reflections is in `tested` with
 // the same delay and gain; returns how many were compared.
 std::size_t expect_contains(const tracer::Snapshot& tested, const tracer::Snapshot& reference, std::size_t order,
@@ -267,12 +284,7 @@ TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
     const auto veh = [&](const std::string& n) { return n.rfind("vehicle/", 0) == 0; };
     for (std::size_t p = 0; p < ref.pairs.size(); ++p)
       for (const auto& path : ref.pairs[p].paths) {
-        std::vector<std::string> refl;
-        bool through_building = false;
-        for (const auto& it : path.interactions) {
-          if (it.type == tracer::InteractionType::specular) refl.push_back(names[it.object]);
-          through_building |= it.type == tracer::InteractionType::refraction && !veh(names[it.object]);
-        }
+        const auto [refl, through_building] = reflections(path, names);
         if (refl.size() != 2) continue;
         const bool same_vehicle = veh(refl[0]) && refl[0] == refl[1];
         if (!same_vehicle && (veh(refl[0]) == veh(refl[1]) || refl[0] == "ground" || refl[1] == "ground")) continue;
@@ -493,12 +505,7 @@ TEST(ImageSearch, WallCarAndGroundAtOrder3MatchExhaustive) {
       Count& c = ground3 ? with : without;
       for (std::size_t p = 0; p < ref.pairs.size(); ++p)
         for (const auto& path : ref.pairs[p].paths) {
-          std::vector<std::string> refl;
-          bool through_building = false;
-          for (const auto& it : path.interactions) {
-            if (it.type == tracer::InteractionType::specular) refl.push_back(names[it.object]);
-            through_building |= it.type == tracer::InteractionType::refraction && !veh(names[it.object]);
-          }
+          const auto [refl, through_building] = reflections(path, names);
           if (through_building) continue;
           std::size_t cars = 0, ground = 0, walls = 0, shelter = 0, g_at = 0;
           for (std::size_t k = 0; k < refl.size(); ++k) {
@@ -520,10 +527,11 @@ TEST(ImageSearch, WallCarAndGroundAtOrder3MatchExhaustive) {
             return std::fabs(g.tau_s - path.tau_s) < 1e-15 && std::abs(g.a - path.a) <= 1e-9 * std::abs(path.a);
           });
           c.missed += !found;
-          if (ground3)
+          if (ground3) {
             EXPECT_TRUE(found) << "seed " << seed << " pair " << p << ": " << refl[0] << " -> " << refl[1]
                                << (refl.size() > 2 ? " -> " + refl[2] : "") << ", "
                                << 20 * std::log10(std::abs(path.a)) << " dB";
+          }
         }
     }
   }
