@@ -861,6 +861,36 @@ void small_face_beams(const ImageFaces& faces, const Vec3& src, std::vector<Beam
   }
 }
 
+void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, std::vector<BeamPair>& pairs) {
+  std::vector<Vec3> pyramid;
+  std::vector<std::uint32_t> stack;
+  for (const std::uint32_t f1 : faces.small) {
+    const Plane& pl = faces.planes[f1];
+    const double ds = dot(pl.normal, src) - pl.offset;
+    if (ds == 0) continue;
+    const Vec3 i1 = src - (2 * ds) * pl.normal;
+    pyramid.clear();
+    outline_pyramid(faces, f1, i1, pyramid);
+    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
+    // Outside the beam: behind f1 (on the far side from the source) or
+    // outside the pyramid from I1 through its outline, padded by the
+    // on-face tolerances carried to the distance.
+    auto outside = [&](const TraceScene::Sphere& sp, double tol) {
+      const double h = dot(pl.normal, sp.centre) - pl.offset;
+      if ((ds > 0 ? h : -h) + sp.radius <= 0) return true;
+      const Vec3 w = sp.centre - i1;
+      const double reach = sp.radius + tol + (spread_per_m + 1e-6) * (norm(w) + sp.radius);
+      for (const auto& nrm : pyramid)
+        if (dot(nrm, w) < -reach) return true;
+      return false;
+    };
+    walk_static_tree(faces, stack, outside, [&](std::uint32_t f2) {
+      if (f2 != f1 && scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2) && !outside(faces.spheres[f2], faces.tol[f2]))
+        pairs.push_back({f1, f2});
+    });
+  }
+}
+
 void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                           std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
                           const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,

@@ -141,6 +141,12 @@ struct BeamPair {
   auto operator<=>(const BeamPair&) const = default;
 };
 
+// The pairs (small static face, static face in its beam) from `src`,
+// exactly: the rays seldom reflect on a small face at all (a kerb-side box
+// at 50 m falls between them), so what its beam lights is taken from the
+// geometry. Appended to `pairs` (unsorted).
+void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, std::vector<BeamPair>& pairs);
+
 // The order-3 sequences (f1, f2, f3) of every listed pair from node `src`
 // to each of `receivers`: every static face f3 in the beam after f2 (apex
 // the source's second image; the pyramid through f2's outline, or for a

@@ -1150,6 +1150,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
                                 cfg.ground_order3 && cfg.max_depth >= 3);
         if (!triple_search) return;
         auto& bp = beam_pairs[i];
+        small_face_pairs(scene, faces, nodes[i].position, bp);
         std::sort(bp.begin(), bp.end());
         bp.erase(std::unique(bp.begin(), bp.end()), bp.end());
         beam_pair_candidates(scene, faces, nodes, i, bp, partners[i], found[i], &bstats[i], cfg.ground_order3);
