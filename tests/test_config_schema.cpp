@@ -187,7 +187,7 @@ TEST(ConfigSchema, DefaultsAreFilledIn) {
     for (const auto& k : t->docs()) EXPECT_TRUE(eff[t->name()].contains(k.key)) << t->name() << "." << k.key;
   }
   EXPECT_EQ(eff["tracer"]["max_depth"], 2);
-  EXPECT_EQ(eff["tracer"]["rays_per_source"], 4096);
+  EXPECT_EQ(eff["tracer"]["rays_per_source"], 6144);
   EXPECT_EQ(eff["scene"], defaults["scene"]);
   EXPECT_EQ(eff["materials"]["glass"]["thickness_m"], 0.004);
   EXPECT_TRUE(eff["materials"]["glass"]["eps_r"].is_null());  // the built-in value at the carrier
@@ -196,7 +196,7 @@ TEST(ConfigSchema, DefaultsAreFilledIn) {
   // The loaders' structs hold the same values.
   const TraceSettings s = load_trace_config((dir / "c.toml").string());
   EXPECT_EQ(s.tracer.max_depth, 2);
-  EXPECT_EQ(s.tracer.rays_per_source, 4096);
+  EXPECT_EQ(s.tracer.rays_per_source, 6144);
   ASSERT_TRUE(s.tracer.materials.at("glass").thickness_m.has_value());
   EXPECT_EQ(*s.tracer.materials.at("glass").thickness_m, 0.004);
 }
