@@ -713,7 +713,9 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     double cos_delta = -1, sin_delta = 1;
   };
   std::vector<Variant> variants;
-  for (const auto& [f1, v] : combos) {
+  for (const BeamVehicle& combo : combos) {
+    // (Not a structured binding: clang before 16 cannot capture those.)
+    const std::uint32_t f1 = combo.face, v = combo.vehicle;
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
     if (ds == 0) continue;
