@@ -306,6 +306,19 @@ void outline_pyramid(const ImageFaces& faces, std::uint32_t f, const Vec3& apex,
   }
 }
 
+// Whether sphere `sp`, grown by `tol`, lies wholly outside the pyramid of
+// inward unit normals `planes` through `apex`, padded by `spread_per_m` per
+// metre from the apex (the first face's on-face tolerance carried along
+// its beam).
+bool outside_pyramid(const std::vector<Vec3>& planes, const Vec3& apex, const TraceScene::Sphere& sp, double tol,
+                     double spread_per_m) {
+  const Vec3 w = sp.centre - apex;
+  const double reach = sp.radius + tol + (spread_per_m + 1e-6) * (norm(w) + sp.radius);
+  for (const auto& nrm : planes)
+    if (dot(nrm, w) < -reach) return true;
+  return false;
+}
+
 // Marks the receivers r whose line from image `img` (signed distance -ds
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
@@ -678,7 +691,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats, bool ground_last) {
+                             ImageSearchStats* stats, bool with_ground) {
   if (combos.empty() || receivers.empty()) return;
   ImageSearchStats local;
   const Vec3 xs = nodes[src].position;
@@ -687,12 +700,13 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     const double rr = faces.spheres[f].radius + faces.tol[f];
     return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
   };
-  // Each receiver's images in the ground faces (for the ground last).
+  // Each receiver's images in the ground faces (for the ground last; the
+  // vector is empty without `with_ground`).
   struct Mirrored {
     std::uint32_t k;  // index into faces.ground
     Vec3 x;
   };
-  std::vector<std::vector<Mirrored>> mirrored(ground_last ? receivers.size() : 0);
+  std::vector<std::vector<Mirrored>> mirrored(with_ground ? receivers.size() : 0);
   for (std::size_t r = 0; r < mirrored.size(); ++r)
     for (std::uint32_t k = 0; k < faces.ground.size(); ++k) {
       const Plane& pg = faces.planes[faces.ground[k]];
@@ -730,15 +744,7 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     pyramid.clear();
     outline_pyramid(faces, f1, i1, pyramid);
     const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
-    auto meets = [&](const Vec3& apex, const std::vector<Vec3>& planes) {
-      const Vec3 w = sv.centre - apex;
-      const double d = norm(w);
-      const double reach = sv.radius + (spread_per_m + 1e-6) * (d + sv.radius);
-      for (const auto& nrm : planes)
-        if (dot(nrm, w) < -reach) return false;
-      return true;
-    };
-    const bool direct = meets(i1, pyramid);
+    const bool direct = !outside_pyramid(pyramid, i1, sv, 0, spread_per_m);
     // The reflection on vehicle face f for one variant, then the way back
     // through the ground (if any) to f1; appended when every point lies on
     // its face.
@@ -783,7 +789,7 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
       if (!between[k]) continue;
       pyramid_g.clear();
       for (const auto& nrm : pyramid) pyramid_g.push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
-      between[k] = meets(i1 - (2 * dg) * pg.normal, pyramid_g);
+      between[k] = !outside_pyramid(pyramid_g, i1 - (2 * dg) * pg.normal, sv, 0, spread_per_m);
       any_between |= between[k] != 0;
     }
     if (!direct && !any_between) continue;
@@ -807,7 +813,7 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
       const std::vector<std::uint32_t>* mount =
           static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
       if (direct && !mount) variants.push_back({Kind::echo, 0, i1, xr});
-      for (const auto& [k, xm] : ground_last ? mirrored[ri] : no_mirrored) {
+      for (const auto& [k, xm] : with_ground ? mirrored[ri] : no_mirrored) {
         if (between[k]) variants.push_back({Kind::between, k, i1g[k], xr});
         if (direct && faces.ground[k] != f1) variants.push_back({Kind::last, k, i1, xm});
       }
@@ -879,12 +885,7 @@ void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Ve
     // on-face tolerances carried to the distance.
     auto outside = [&](const TraceScene::Sphere& sp, double tol) {
       const double h = dot(pl.normal, sp.centre) - pl.offset;
-      if ((ds > 0 ? h : -h) + sp.radius <= 0) return true;
-      const Vec3 w = sp.centre - i1;
-      const double reach = sp.radius + tol + (spread_per_m + 1e-6) * (norm(w) + sp.radius);
-      for (const auto& nrm : pyramid)
-        if (dot(nrm, w) < -reach) return true;
-      return false;
+      return (ds > 0 ? h : -h) + sp.radius <= 0 || outside_pyramid(pyramid, i1, sp, tol, spread_per_m);
     };
     walk_static_tree(faces, stack, outside, [&](std::uint32_t f2) {
       if (f2 != f1 && scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2) && !outside(faces.spheres[f2], faces.tol[f2]))

@@ -17,6 +17,11 @@
 // antenna's own included) is enumerated the same way for the (face, vehicle)
 // combinations the shoot-and-bounce rays' beams reach (BeamVehicle, below):
 // the rays sample a wall densely where they miss a small, far car's faces.
+//   order 3, a wall, a vehicle and the ground in any order: from the same
+//            (face, vehicle) combinations, the ground before or after the
+//            vehicle (BeamVehicle, below);
+//   a small static face first (a kerb-side box, a corner strip): its beam's
+//            vehicles and second faces exactly, without the rays;
 //   order 3 beginning on a static face: the lit beam pairs of the rays
 //            (BeamPair, below), their third faces exactly.
 //   orders 2 and 3 on one vehicle (its concave corners, its cabin through
@@ -115,11 +120,14 @@ struct BeamVehicle {
 // The order-2 sequences (static face f, any face of vehicle v) of every
 // listed combination from node `src` to each of `receivers`, enumerated
 // exactly through the vehicle's normals as above (towards every receiver:
-// from the other end they read vehicle then static face).
+// from the other end they read vehicle then static face). With
+// `with_ground` also the order-3 sequences (f, ground, v) and (f, v,
+// ground) of the same combinations: a horizontal ground bends f's beam up
+// or down without moving it sideways.
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats = nullptr, bool ground_last = false);
+                             ImageSearchStats* stats = nullptr, bool with_ground = false);
 
 // The combinations (small static face, vehicle) that can exist from `src`,
 // exactly: every vehicle in the cone from the source's image through the
