@@ -86,6 +86,10 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       if (edge_angle(e, w - dot(w, e.e) * e.e) <= e.n * kPi) tx_edges.push_back(k);
     }
   }
+  // Reflection-diffraction (a static face, then the edge), as `trace`
+  // lists it from a pair's ends; the transmitter's list once.
+  std::vector<tracer::ReflectedEdge> tx_reflected;
+  if (cfg.diffraction && cfg.diffraction_reflection) tracer::reflected_edges(scene, faces, tx.position, range, tx_reflected);
   const bool vehicles = !scene.vehicles().empty();
   std::optional<tracer::FresnelObstacles> obstacles;
   if (vehicles && cfg.vehicle_diffraction) obstacles.emplace(scene);
@@ -113,6 +117,7 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
     for (auto& c : found) cand[c.rx].push_back(std::move(c.faces));
 
     std::vector<std::uint32_t> blockers;
+    std::vector<tracer::ReflectedEdge> rx_reflected;
     for (std::uint32_t r = 1; r < nodes.size(); ++r) {
       RadioMapPointResult& res = out[begin + r - 1];
       const Node& rx = nodes[r];
@@ -154,6 +159,37 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       for (auto k : tx_edges)
         if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, scene.edges()[k], &st.rays))
           add(std::norm(p->a));
+      // The reflection before the edge: Keller's point from the
+      // transmitter's image and the point on the part of the edge in the
+      // face's beam (the filter `trace` applies), then the exact path.
+      for (const auto& re : tx_reflected) {
+        const tracer::Edge& e = scene.edges()[re.edge];
+        const Vec3 w = rx.position - e.a;
+        const double zr = dot(w, e.e), rr = norm(w - zr * e.e);
+        const double zq = (re.zt * rr + zr * re.rt) / (re.rt + rr);
+        if (!(zq >= re.z0 && zq <= re.z1)) continue;
+        ++st.candidates;
+        const tracer::FaceRef face{0, re.face};
+        if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, e, &st.rays, &face, nullptr))
+          add(std::norm(p->a));
+      }
+      // The reflection after the edge: the point's own list (its images).
+      if (cfg.diffraction && cfg.diffraction_reflection) {
+        rx_reflected.clear();
+        tracer::reflected_edges(scene, faces, rx.position, range, rx_reflected);
+        for (const auto& re : rx_reflected) {
+          if (!std::binary_search(tx_edges.begin(), tx_edges.end(), re.edge)) continue;  // tx sees its outside
+          const tracer::Edge& e = scene.edges()[re.edge];
+          const Vec3 w = tx.position - e.a;
+          const double zt = dot(w, e.e), rt = norm(w - zt * e.e);
+          const double zq = (re.zt * rt + zt * re.rt) / (re.rt + rt);
+          if (!(zq >= re.z0 && zq <= re.z1)) continue;
+          ++st.candidates;
+          const tracer::FaceRef face{0, re.face};
+          if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, e, &st.rays, nullptr, &face))
+            add(std::norm(p->a));
+        }
+      }
       res.gain = gain;
       res.paths = n_paths;
       st.paths += n_paths;

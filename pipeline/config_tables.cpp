@@ -395,6 +395,9 @@ const Table<TraceSettings>& tracer_table() {
           "image search: three reflections beginning on a static face and a second face the rays light "
           "(a wall or a vehicle's), the third face from their beam");
     t.key("diffraction", boolean(), FIELD(tracer.diffraction), "", "first-order UTD edge diffraction on the static scene");
+    t.key("diffraction_reflection", boolean(), FIELD(tracer.diffraction_reflection), "",
+          "with diffraction: a reflection on a static face before or after the edge (reflection-diffraction, "
+          "diffraction-reflection)");
     t.key("vehicle_diffraction", boolean(), FIELD(tracer.vehicle_diffraction), "",
           "vehicles in the first Fresnel zone: P.526 knife-edge loss on the direct path");
     t.key("path_threshold_db", number(), FIELD(tracer.path_threshold_db), "dB",

@@ -392,6 +392,12 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.beam_order3 = !base.beam_order3;
       grid.push_back(s);
     }
+    // Reflection on a static face before or after a diffracting edge.
+    if (base.diffraction) {
+      s = variant(base.diffraction_reflection ? "-reflection-diffraction" : "+reflection-diffraction");
+      s.tracer.diffraction_reflection = !base.diffraction_reflection;
+      grid.push_back(s);
+    }
     // What the exact image search costs and buys over sampling alone.
     if (base.candidates != tracer::CandidateSearch::exhaustive) {
       const bool image = base.candidates == tracer::CandidateSearch::image;
@@ -663,6 +669,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
                     {"vehicle_multi_bounce", s.tracer.vehicle_multi_bounce},
                     {"ground_order3", s.tracer.ground_order3},
                     {"beam_order3", s.tracer.beam_order3},
+                    {"diffraction_reflection", s.tracer.diffraction_reflection},
                     {"lod", s.lod},
                     {"static_simplification", s.simplify_m},
                     {"static_triangles", scenes.at(s.simplify_m).stats.triangles_after},

@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <complex>
 #include <cstdio>
@@ -899,6 +900,161 @@ TEST(Diffraction, SwitchAddsDiffractionPathsOnTheBuilding) {
   EXPECT_EQ(on.pairs[0].rx, 1u);
   EXPECT_EQ(on.pairs[0].los_class, tracer::LosClass::NLOS);
   EXPECT_GT(on.pairs[0].paths.size(), off.pairs[0].paths.size());
+}
+
+// ---------------------------------------------------------------------------
+// 7. A reflection before or after the edge (TracerConfig::diffraction_reflection).
+
+namespace {
+
+// The knife-edge screen x = 0 (metal, top at he) over a ground plane z = 0,
+// and the same screen alone: the ground-reflected diffraction from tx is
+// the diffraction from tx's image in the ground, times the ground's
+// reflection coefficient (the unfolding the method of images states).
+struct ScreenOverGround {
+  double d1 = 120, d2 = 80, he = 9, ht = 1.5;
+  meshkit::Scene with, without;
+  std::unique_ptr<tracer::TraceScene> ground, alone;
+  const tracer::Edge *top_g = nullptr, *top_a = nullptr;
+  tracer::FaceRef ground_face;
+  ScreenOverGround() {
+    for (auto* s : {&with, &without})
+      add_quad(*s, "metal", "screen", {0, -1000, he - 400}, {0, -1000, he}, {0, 1000, he}, {0, 1000, he - 400});
+    add_ground(with, 1000);
+    ground = std::make_unique<tracer::TraceScene>(with);
+    alone = std::make_unique<tracer::TraceScene>(without);
+    top_g = find_edge(*ground, {0, -1000, he}, {0, 1000, he});
+    top_a = find_edge(*alone, {0, -1000, he}, {0, 1000, he});
+    const auto names = ground->object_names();
+    for (std::uint32_t f = 0; f < ground->face_count(0); ++f)
+      if (names.at(ground->object({0, f})) == "ground") ground_face = {0, f};
+  }
+  Vec3 tx() const { return {-d1, 0, ht}; }
+};
+
+}  // namespace
+
+TEST(DiffractionReflection, GroundThenEdgeIsTheImageSourcesDiffraction) {
+  ScreenOverGround g;
+  ASSERT_TRUE(g.top_g && g.top_a);
+  const Vec3 image{-g.d1, 0, -g.ht};
+  for (auto pol : {tracer::Polarization::H, tracer::Polarization::V}) {
+    tracer::Electromagnetics em_g(g.ground->material_names(), radio(pol), {});
+    tracer::Electromagnetics em_a(g.alone->material_names(), radio(pol), {});
+    for (double hr : {0.5, 1.5, 4.0, 12.0}) {  // behind the screen, deep shadow to lit
+      const Vec3 rx{g.d2, 0, hr};
+      const auto rd = tracer::compute_diffraction_path(*g.ground, em_g, node("tx", g.tx()), node("rx", rx), *g.top_g,
+                                                       nullptr, &g.ground_face, nullptr);
+      const auto d = tracer::compute_diffraction_path(*g.alone, em_a, node("tx", image), node("rx", rx), *g.top_a);
+      ASSERT_TRUE(rd && d) << "hr " << hr;
+      // Geometry by hand: the unfolded line from the image to the top edge
+      // (Keller's point at y = 0, z = he) meets the ground at x_g.
+      const Vec3 q{0, 0, g.he};
+      const double x_g = -g.d1 + g.d1 * g.ht / (g.ht + g.he);
+      ASSERT_EQ(rd->interactions.size(), 2u);
+      EXPECT_EQ(rd->interactions[0].type, tracer::InteractionType::specular);
+      EXPECT_EQ(rd->interactions[1].type, tracer::InteractionType::diffraction);
+      EXPECT_LT(tracer::norm(rd->interactions[0].point - Vec3{x_g, 0, 0}), 1e-9);
+      EXPECT_LT(tracer::norm(rd->interactions[1].point - q), 1e-9);
+      EXPECT_NEAR(rd->tau_s, d->tau_s, 1e-15);
+      // The ground's coefficient at its grazing angle: TE for H (the field
+      // across the plane of incidence), TM for V (in it; its sign is the
+      // basis convention's, so only the magnitude is compared).
+      const double cos_g = g.ht / tracer::norm(Vec3{x_g, 0, 0} - g.tx());
+      const auto c = em_g.coefficients(g.ground->material(g.ground_face), cos_g);
+      const double keep = em_g.specular_keep(g.ground->material(g.ground_face));
+      if (pol == tracer::Polarization::H) {
+        const cd expect = keep * c.r.te * d->a;
+        EXPECT_LT(std::abs(rd->a - expect), 1e-9 * std::abs(expect)) << "hr " << hr;
+      } else {
+        const double expect = keep * std::abs(c.r.tm) * std::abs(d->a);
+        EXPECT_LT(std::fabs(std::abs(rd->a) - expect), 1e-9 * expect) << "hr " << hr;
+      }
+      // Reciprocity: the same path traced from the receiver, the ground after the edge.
+      const auto dr = tracer::compute_diffraction_path(*g.ground, em_g, node("rx", rx), node("tx", g.tx()), *g.top_g,
+                                                       nullptr, nullptr, &g.ground_face);
+      ASSERT_TRUE(dr);
+      EXPECT_LT(std::abs(dr->a - rd->a), 1e-9 * std::abs(rd->a)) << "hr " << hr;
+      EXPECT_NEAR(dr->tau_s, rd->tau_s, 1e-15);
+      ASSERT_EQ(dr->interactions.size(), 2u);
+      EXPECT_EQ(dr->interactions[1].type, tracer::InteractionType::specular);
+    }
+  }
+}
+
+TEST(DiffractionReflection, NoPathWhereTheReflectionPointIsOffItsFace) {
+  // The ground ends 10 m before the screen: the ground-reflected ray to the
+  // top edge would meet the ground at x_g = -110 m, off the shortened quad.
+  ScreenOverGround g;
+  meshkit::Scene s;
+  add_quad(s, "metal", "screen", {0, -1000, g.he - 400}, {0, -1000, g.he}, {0, 1000, g.he}, {0, 1000, g.he - 400});
+  add_quad(s, "medium_dry_ground", "ground", {-100, -1000, 0}, {-5, -1000, 0}, {-5, 1000, 0}, {-100, 1000, 0});
+  tracer::TraceScene scene(s);
+  const auto* top = find_edge(scene, {0, -1000, g.he}, {0, 1000, g.he});
+  ASSERT_TRUE(top);
+  tracer::Electromagnetics em(scene.material_names(), radio(), {});
+  const tracer::FaceRef ground{0, 1};
+  ASSERT_EQ(scene.object_names().at(scene.object(ground)), "ground");
+  EXPECT_FALSE(tracer::compute_diffraction_path(scene, em, node("tx", g.tx()), node("rx", {g.d2, 0, 1.5}), *top,
+                                                nullptr, &ground, nullptr));
+  // Closer to the screen the point is on the quad (x_g = -15.4 m).
+  EXPECT_TRUE(tracer::compute_diffraction_path(scene, em, node("tx", {-20, 0, 1.5}), node("rx", {g.d2, 0, 1.5}), *top,
+                                               nullptr, &ground, nullptr));
+}
+
+TEST(DiffractionReflection, CornerThenFacingWallThroughTheSnapshot) {
+  // A block [0, 20]^2 x 15 m and a wall x = 45 facing it; tx north-west of
+  // the block, rx east of it: round the corner (20, 20) and off the wall.
+  meshkit::Scene s;
+  add_box_object(s, {0, 0, 0}, {20, 20, 15}, "concrete", "block");
+  add_quad(s, "concrete", "wall", {45, -40, 0}, {45, -40, 15}, {45, 60, 15}, {45, 60, 0});
+  tracer::TraceScene scene(s);
+  const auto names = scene.object_names();
+  auto object = [&](const std::string& n) {
+    return static_cast<std::uint32_t>(std::find(names.begin(), names.end(), n) - names.begin());
+  };
+  const Vec3 tx{-10, 30, 1.5}, rx{35, 5, 1.5};
+  auto cfg = diffraction_config();
+  cfg.diffuse = false;
+  // The path by hand: Keller's point on the vertical edge at the antennas'
+  // height, the wall's point on the line from there to rx's image (55, 5).
+  const Vec3 q{20, 20, 1.5}, p{45, 20 - 15.0 * 25 / 35, 1.5};
+  const double length = tracer::norm(q - tx) + tracer::norm(p - q) + tracer::norm(rx - p);
+  for (bool on : {false, true}) {
+    cfg.diffraction_reflection = on;
+    // Both node orders: from the lower end it is diffraction then the wall,
+    // from the other reflection then diffraction.
+    std::array<const tracer::Path*, 2> found{};
+    std::array<tracer::Snapshot, 2> snaps;
+    for (int order = 0; order < 2; ++order) {
+      const std::vector<tracer::Node> nodes =
+          order == 0 ? std::vector<tracer::Node>{node("tx", tx), node("rx", rx)}
+                     : std::vector<tracer::Node>{node("rx", rx), node("tx", tx)};
+      snaps[order] = tracer::trace_snapshot(scene, nodes, cfg, radio());
+      ASSERT_EQ(snaps[order].pairs.size(), 1u);
+      for (const auto& path : snaps[order].pairs[0].paths) {
+        if (path.interactions.size() != 2) continue;
+        const auto& in = path.interactions;
+        const int d = order == 0 ? 0 : 1;  // which one diffracts
+        if (in[d].type != tracer::InteractionType::diffraction || in[1 - d].type != tracer::InteractionType::specular ||
+            in[d].object != object("block") || in[1 - d].object != object("wall"))
+          continue;
+        if (tracer::norm(in[d].point - q) < 1e-6 && tracer::norm(in[1 - d].point - p) < 1e-6) found[order] = &path;
+      }
+    }
+    if (!on) {
+      EXPECT_FALSE(found[0] || found[1]);
+      for (const auto& sn : snaps)
+        for (const auto& path : sn.pairs[0].paths)
+          if (path.interactions.size() > 1)
+            for (const auto& in : path.interactions) EXPECT_NE(in.type, tracer::InteractionType::diffraction);
+      continue;
+    }
+    ASSERT_TRUE(found[0] && found[1]);
+    EXPECT_NEAR(found[0]->tau_s, length / tracer::kSpeedOfLight, 1e-15);
+    EXPECT_NEAR(found[1]->tau_s, found[0]->tau_s, 1e-15);
+    EXPECT_LT(std::abs(found[1]->a - found[0]->a), 1e-9 * std::abs(found[0]->a));
+  }
 }
 
 // ---------------------------------------------------------------------------

@@ -119,6 +119,10 @@ struct TracerConfig {
   // First-order UTD edge diffraction on the static scene's wedges
   // (TraceScene::edges()), finite conductivity by Luebbers' coefficients.
   bool diffraction = true;
+  // With diffraction: a specular reflection on a static face before or
+  // after the edge (reflection-diffraction, diffraction-reflection: the
+  // ground bounce over a roof edge, a wall's echo round a corner).
+  bool diffraction_reflection = true;
   // Vehicles in the first Fresnel zone of the direct path attenuate it by
   // ITU-R P.526's knife-edge loss (Deygout for several: tracer/fresnel.hpp);
   // a direct ray only vehicles block survives, attenuated.

@@ -67,13 +67,16 @@ void convex_outline(const std::vector<std::array<Vec3, 3>>& tris, const Plane& p
   for (const auto& q : hull) out.push_back(q.p);
 }
 
-// Builds faces.static_tree over static faces order[b, e): median split on
-// the longest axis of the spheres' box, four faces per leaf. Each node's
-// sphere holds its faces' spheres; its tol is their largest.
-void build_sphere_tree(ImageFaces& faces, std::uint32_t b, std::uint32_t e) {
+// Builds a sphere tree over items order[b, e) (spheres[i], tol[i]) into
+// `tree`: median split on the longest axis of the spheres' box, four items
+// per leaf. Each node's sphere holds its items' spheres; its tol is their
+// largest.
+void build_sphere_tree(const std::vector<TraceScene::Sphere>& spheres, const std::vector<double>& tols,
+                       std::vector<ImageFaces::SphereNode>& tree, std::vector<std::uint32_t>& order, std::uint32_t b,
+                       std::uint32_t e) {
   Vec3 lo{1e300, 1e300, 1e300}, hi{-1e300, -1e300, -1e300};
   for (std::uint32_t k = b; k < e; ++k) {
-    const auto& s = faces.spheres[faces.static_order[k]];
+    const auto& s = spheres[order[k]];
     for (int a = 0; a < 3; ++a) {
       lo[a] = std::min(lo[a], s.centre[a] - s.radius);
       hi[a] = std::max(hi[a], s.centre[a] + s.radius);
@@ -82,31 +85,30 @@ void build_sphere_tree(ImageFaces& faces, std::uint32_t b, std::uint32_t e) {
   ImageFaces::SphereNode node;
   node.sphere.centre = 0.5 * (lo + hi);
   for (std::uint32_t k = b; k < e; ++k) {
-    const auto f = faces.static_order[k];
-    const auto& s = faces.spheres[f];
+    const auto f = order[k];
+    const auto& s = spheres[f];
     node.sphere.radius = std::max(node.sphere.radius, norm(s.centre - node.sphere.centre) + s.radius);
-    node.tol = std::max(node.tol, faces.tol[f]);
+    node.tol = std::max(node.tol, tols[f]);
   }
-  const std::size_t at = faces.static_tree.size();
-  faces.static_tree.push_back(node);
+  const std::size_t at = tree.size();
+  tree.push_back(node);
   if (e - b <= 4) {
-    faces.static_tree[at].begin = b;
-    faces.static_tree[at].count = e - b;
+    tree[at].begin = b;
+    tree[at].count = e - b;
     return;
   }
   int axis = 0;
   for (int a = 1; a < 3; ++a)
     if (hi[a] - lo[a] > hi[axis] - lo[axis]) axis = a;
   const std::uint32_t mid = b + (e - b) / 2;
-  // Ties broken by face index: the same tree on every run.
-  std::nth_element(faces.static_order.begin() + b, faces.static_order.begin() + mid, faces.static_order.begin() + e,
-                   [&](std::uint32_t x, std::uint32_t y) {
-                     const double cx = faces.spheres[x].centre[axis], cy = faces.spheres[y].centre[axis];
-                     return cx < cy || (cx == cy && x < y);
-                   });
-  build_sphere_tree(faces, b, mid);
-  faces.static_tree[at].right = static_cast<std::uint32_t>(faces.static_tree.size());
-  build_sphere_tree(faces, mid, e);
+  // Ties broken by index: the same tree on every run.
+  std::nth_element(order.begin() + b, order.begin() + mid, order.begin() + e, [&](std::uint32_t x, std::uint32_t y) {
+    const double cx = spheres[x].centre[axis], cy = spheres[y].centre[axis];
+    return cx < cy || (cx == cy && x < y);
+  });
+  build_sphere_tree(spheres, tols, tree, order, b, mid);
+  tree[at].right = static_cast<std::uint32_t>(tree.size());
+  build_sphere_tree(spheres, tols, tree, order, mid, e);
 }
 
 }  // namespace
@@ -144,7 +146,15 @@ ImageFaces image_faces(const TraceScene& scene) {
   t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
   t.static_order.resize(t.static_count);
   for (std::uint32_t f = 0; f < t.static_count; ++f) t.static_order[f] = f;
-  if (t.static_count > 0) build_sphere_tree(t, 0, t.static_count);
+  if (t.static_count > 0) build_sphere_tree(t.spheres, t.tol, t.static_tree, t.static_order, 0, t.static_count);
+  // The diffracting edges: each one's sphere, and a tree over them.
+  const auto& edges = scene.edges();
+  for (const Edge& e : edges) t.edge_spheres.push_back({0.5 * (e.a + e.b), 0.5 * norm(e.b - e.a)});
+  const std::vector<double> no_tol(edges.size(), 0.0);
+  t.edge_order.resize(edges.size());
+  for (std::uint32_t k = 0; k < edges.size(); ++k) t.edge_order[k] = k;
+  if (!edges.empty())
+    build_sphere_tree(t.edge_spheres, no_tol, t.edge_tree, t.edge_order, 0, static_cast<std::uint32_t>(edges.size()));
   return t;
 }
 
@@ -265,25 +275,30 @@ unsigned mark_crossings_kernel(const double* __restrict x, const double* __restr
   return any != 0;
 }
 
-// Depth-first down the static faces' sphere tree: prune(sphere, tol) true
-// skips a node and everything below it (its sphere and tol bound theirs);
-// leaf(f) for each face of the leaves reached, in the tree's order.
+// Depth-first down a sphere tree (`order` its items): prune(sphere, tol)
+// true skips a node and everything below it (its sphere and tol bound
+// theirs); leaf(i) for each item of the leaves reached, in the tree's order.
 template <class Prune, class Leaf>
-void walk_static_tree(const ImageFaces& faces, std::vector<std::uint32_t>& stack, Prune&& prune, Leaf&& leaf) {
-  if (faces.static_tree.empty()) return;
+void walk_tree(const std::vector<ImageFaces::SphereNode>& tree, const std::vector<std::uint32_t>& order,
+               std::vector<std::uint32_t>& stack, Prune&& prune, Leaf&& leaf) {
+  if (tree.empty()) return;
   stack.assign(1, 0);
   while (!stack.empty()) {
     const std::uint32_t at = stack.back();
     stack.pop_back();
-    const auto& node = faces.static_tree[at];
+    const auto& node = tree[at];
     if (prune(node.sphere, node.tol)) continue;
     if (node.count == 0) {
       stack.push_back(node.right);
       stack.push_back(at + 1);
       continue;
     }
-    for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) leaf(faces.static_order[k]);
+    for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k) leaf(order[k]);
   }
+}
+template <class Prune, class Leaf>
+void walk_static_tree(const ImageFaces& faces, std::vector<std::uint32_t>& stack, Prune&& prune, Leaf&& leaf) {
+  walk_tree(faces.static_tree, faces.static_order, stack, prune, leaf);
 }
 
 // The pyramid from `apex` through static face f's convex outline: one
@@ -1029,6 +1044,77 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
     stats->image_sources += local.image_sources;
     stats->tests += local.tests;
   }
+}
+
+}  // namespace raysweep::tracer
+
+namespace raysweep::tracer {
+
+void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
+                     std::vector<ReflectedEdge>& out) {
+  const auto& edges = scene.edges();
+  if (edges.empty()) return;
+  std::vector<Vec3> pyramid;
+  std::vector<std::uint32_t> stack;
+  for (std::uint32_t f = 0; f < faces.static_count; ++f) {
+    const Plane& pl = faces.planes[f];
+    const double ds = dot(pl.normal, src) - pl.offset;
+    if (ds == 0) continue;
+    const Vec3 img = src - (2 * ds) * pl.normal;
+    pyramid.clear();
+    outline_pyramid(faces, f, img, pyramid);
+    const double spread_per_m = 2 * faces.tol[f] / std::fabs(ds);
+    const double side = ds > 0 ? 1 : -1;
+    // Outside the beam: wholly behind the face (seen from the source), out
+    // of range of the image, or outside the pyramid through the outline.
+    auto outside = [&](const TraceScene::Sphere& sp, double tol) {
+      const double h = dot(pl.normal, sp.centre) - pl.offset;
+      if (side * h + sp.radius <= 0) return true;
+      if (norm(sp.centre - img) - sp.radius > range) return true;
+      return outside_pyramid(pyramid, img, sp, tol + faces.tol[f], spread_per_m);
+    };
+    walk_tree(faces.edge_tree, faces.edge_order, stack, outside, [&](std::uint32_t k) {
+      if (outside(faces.edge_spheres[k], 0)) return;
+      const Edge& e = edges[k];
+      // The part of the edge inside the beam: the segment clipped by the
+      // face's plane (the source's side) and the pyramid's planes, each
+      // padded as the tests above pad them (at the edge's far end).
+      const double len = norm(e.b - e.a);
+      const double far = norm(faces.edge_spheres[k].centre - img) + 0.5 * len;
+      const double pad = faces.tol[f] + (spread_per_m + 1e-6) * far + 1e-9 * len;
+      double z0 = 0, z1 = len;
+      auto clip = [&](const Vec3& nrm, double h_a) {  // keep z where h_a + z (nrm . e) >= -pad
+        const double slope = dot(nrm, e.e);
+        if (slope == 0) {
+          if (h_a < -pad) z1 = -1;
+          return;
+        }
+        const double z = (-pad - h_a) / slope;
+        if (slope > 0) z0 = std::max(z0, z);
+        else z1 = std::min(z1, z);
+      };
+      clip(side * pl.normal, side * (dot(pl.normal, e.a) - pl.offset));
+      for (const auto& nrm : pyramid) clip(nrm, dot(nrm, e.a - img));
+      if (!(z0 <= z1)) return;
+      // The image must see the edge from outside its wedge.
+      const Vec3 w = img - e.a;
+      const double zt = dot(w, e.e);
+      const Vec3 v = w - zt * e.e;
+      double angle = std::atan2(dot(v, e.n0), dot(v, e.t0));
+      if (angle < 0) angle += 2 * kPi;
+      if (angle > e.n * kPi) return;
+      // A face in the wedge's own planes reflects onto its edge at grazing
+      // incidence: the UTD coefficient's reflection terms hold that already.
+      for (const FaceRef* wf : {&e.face0, &e.face_n}) {
+        const Plane& pw = faces.planes[wf->face];
+        if (wf->face == f || (std::fabs(dot(pw.normal, pl.normal)) > 1 - 1e-9 &&
+                              std::fabs(dot(pw.normal, pl.normal) * pw.offset - pl.offset) < 1e-6))
+          return;
+      }
+      out.push_back({f, k, z0, z1, zt, norm(v)});
+    });
+  }
+  std::sort(out.begin(), out.end());
 }
 
 }  // namespace raysweep::tracer

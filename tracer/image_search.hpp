@@ -83,6 +83,11 @@ struct ImageFaces {
   };
   std::vector<SphereNode> static_tree;
   std::vector<std::uint32_t> static_order;
+  // The diffracting edges (TraceScene::edges()): bounding spheres and the
+  // same kind of tree over them.
+  std::vector<TraceScene::Sphere> edge_spheres;
+  std::vector<SphereNode> edge_tree;
+  std::vector<std::uint32_t> edge_order;
 };
 // True when the image search enumerates every sequence of this kind
 // (order 1; order 2 of static faces, or of the ground and a vehicle; with
@@ -167,5 +172,24 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
                           std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
                           const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
                           ImageSearchStats* stats = nullptr, bool skip_ground = false);
+
+// A static face and a diffracting edge (index into TraceScene::edges())
+// that a reflection on the face can reach from a source: the part of the
+// edge in the face's beam (the pyramid from the source's image through its
+// outline, on the source's side of the face, padded by the on-face
+// tolerance), within `range` of the image, seen by the image from outside
+// the wedge. A face in one of the wedge's planes is left out (the UTD
+// coefficient's reflection terms hold it).
+struct ReflectedEdge {
+  std::uint32_t face = 0;
+  std::uint32_t edge = 0;
+  double z0 = 0, z1 = 0;  // the part in the beam: edge.a + z edge.e, z0 <= z <= z1
+  double zt = 0, rt = 0;  // the image's coordinate along the edge, its distance from the edge's line
+  auto operator<=>(const ReflectedEdge&) const = default;
+};
+// Every such combination from `src`, sorted (reflection-diffraction; from
+// the other end, diffraction-reflection).
+void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
+                     std::vector<ReflectedEdge>& out);
 
 }  // namespace raysweep::tracer

@@ -316,28 +316,77 @@ bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const V
 }  // namespace
 
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
-                                             const Node& to, const Edge& edge, std::uint64_t* rays) {
-  const Vec3 tx = from.position, rx = to.position;
+                                             const Node& to, const Edge& edge, std::uint64_t* rays,
+                                             const FaceRef* before, const FaceRef* after) {
+  // A reflection on a plane before (after) the edge is unfolded: the edge
+  // sees the source's (receiver's) image, along straight legs of the same
+  // length, so Keller's point, the UTD angles and the spreading are those of
+  // the image; the field takes the face's coefficients at its point.
+  auto image = [&](const Vec3& x, const FaceRef* f, Plane& pl) {
+    if (!f) return x;
+    pl = scene.plane(*f);
+    return x - (2 * (dot(pl.normal, x) - pl.offset)) * pl.normal;
+  };
+  Plane pa, pb;
+  const Vec3 tx = image(from.position, before, pa), rx = image(to.position, after, pb);
   const double len = norm(edge.b - edge.a);
   const Vec3 wt = tx - edge.a, wr = rx - edge.a;
   const double zt = dot(wt, edge.e), zr = dot(wr, edge.e);
   const Vec3 vt = wt - zt * edge.e, vr = wr - zr * edge.e;
   const double rt = norm(vt), rr = norm(vr);
-  if (rt < 1e-6 || rr < 1e-6) return std::nullopt;  // an antenna on the edge line
-  const double phi_i = edge_angle(edge, vt), phi_d = edge_angle(edge, vr);
-  const double ext = edge.n * kPi;
-  if (phi_i > ext || phi_d > ext) return std::nullopt;  // inside the wedge
+  if (rt < 1e-6 || rr < 1e-6) return std::nullopt;  // an antenna (image) on the edge line
   // Keller: equal angles with the edge, i.e. the point where the unfolded
   // straight line crosses the edge.
   const double zq = (zt * rr + zr * rt) / (rt + rr);
   if (zq < 0 || zq > len) return std::nullopt;
   const Vec3 q = edge.a + zq * edge.e;
+  // The reflection point on the unfolded line from image `img` to `x` (the
+  // real end's side of the plane), on its face (the sphere first: most
+  // combinations fail there).
+  auto reflection_point = [&](const FaceRef& f, const Plane& pl, const Vec3& img, const Vec3& x, Vec3& point) {
+    const double di = dot(pl.normal, img) - pl.offset, dx = dot(pl.normal, x) - pl.offset;
+    if (!(di * dx < 0)) return false;
+    point = img + (di / (di - dx)) * (x - img);
+    const auto sphere = scene.face_sphere(f);
+    const double tol = 2 * scene.slack(point, 0) + 2 * scene.flatness(f);
+    const Vec3 w = point - sphere.centre;
+    return dot(w, w) <= (sphere.radius + tol) * (sphere.radius + tol) && scene.face_contains(f, point, tol);
+  };
+  Vec3 p_before{0, 0, 0}, p_after{0, 0, 0};
+  if (before && !reflection_point(*before, pa, tx, q, p_before)) return std::nullopt;
+  if (after && !reflection_point(*after, pb, rx, q, p_after)) return std::nullopt;
   const double sp = norm(q - tx), sd = norm(rx - q);
   const Vec3 s_in = (1.0 / sp) * (q - tx), s_out = (1.0 / sd) * (rx - q);
   const double sin_b = norm(cross(edge.e, s_in));
   if (sin_b < 1e-6) return std::nullopt;  // grazing along the edge
-  if (!leg_clear(scene, edge, tx, s_in, sp, rays) || !leg_clear(scene, edge, q, s_out, sd, rays))
+  // A leg from or to a reflection point, clear of all but its face and,
+  // at the edge point, the edge's faces (occlusion ignores two faces, so
+  // with two edge faces each is ignored in turn: a real blocker shows in
+  // both queries).
+  auto reflected_leg_clear = [&](const FaceRef& f, const Vec3& a, const Vec3& b, bool at_edge) {
+    const double l = norm(b - a);
+    const Vec3 dir = (1.0 / l) * (b - a);
+    const double t0 = scene.slack(a, 0) * 0.1, t1 = l - scene.slack(a, l) * 0.1;
+    if (t1 <= t0) return false;
+    if (rays) ++*rays;
+    if (!scene.occluded(a, dir, t0, t1, &f, at_edge ? &edge.face0 : nullptr)) return true;
+    if (!at_edge || edge.face_n == edge.face0) return false;
+    if (rays) ++*rays;
+    return !scene.occluded(a, dir, t0, t1, &f, &edge.face_n);
+  };
+  if (before && (!reflected_leg_clear(*before, from.position, p_before, false) ||
+                 !reflected_leg_clear(*before, q, p_before, true)))
     return std::nullopt;
+  if (after &&
+      (!reflected_leg_clear(*after, p_after, to.position, false) || !reflected_leg_clear(*after, q, p_after, true)))
+    return std::nullopt;
+  if (!before && !leg_clear(scene, edge, from.position, s_in, sp, rays)) return std::nullopt;
+  if (!after && !leg_clear(scene, edge, q, s_out, sd, rays)) return std::nullopt;
+  // Both ends (images) outside the wedge (the callers' edge lists hold
+  // that already; here the angles are needed for the coefficients).
+  const double phi_i = edge_angle(edge, vt), phi_d = edge_angle(edge, vr);
+  const double ext = edge.n * kPi;
+  if (phi_i > ext || phi_d > ext) return std::nullopt;
 
   const double lambda = em.wavelength();
   const double k = 2 * kPi / lambda;
@@ -353,20 +402,48 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   const Vec3 beta_in = cross(s_in, phi_in);
   const Vec3 phi_out = normalize(cross(edge.e, s_out));
   const Vec3 beta_out = cross(s_out, phi_out);
-  const Vec3 e_tx = antenna_field(em.radio().antenna, s_in, from.forward);
-  const Vec3 f_rx = antenna_field(em.radio().antenna, -s_out, to.forward);
-  const cdouble field = -(D.soft * dot(e_tx, beta_in) * dot(f_rx, beta_out) + D.hard * dot(e_tx, phi_in) * dot(f_rx, phi_out));
+  // The real first and last legs' directions.
+  const Vec3 d_first = before ? normalize(p_before - from.position) : s_in;
+  const Vec3 d_last = after ? normalize(to.position - p_after) : s_out;
+  // A reflection of field e travelling along k_in on face f (plane pl).
+  auto reflect = [&](const CVec3& e, const Vec3& k_in, const FaceRef& f, const Plane& pl) {
+    const auto mat = scene.material(f);
+    const auto c = em.coefficients(mat, std::fabs(dot(k_in, pl.normal)));
+    const Vec3 es = te_basis(k_in, pl.normal);
+    const Vec3 k_out = k_in - (2 * dot(k_in, pl.normal)) * pl.normal;
+    const double keep = em.specular_keep(mat);
+    return combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, cross(es, k_in)), cross(es, k_out));
+  };
+  const Vec3 e_tx = antenna_field(em.radio().antenna, d_first, from.forward);
+  const Vec3 f_rx = antenna_field(em.radio().antenna, -1.0 * d_last, to.forward);
+  cdouble field;
+  if (!before && !after) {
+    field = -(D.soft * dot(e_tx, beta_in) * dot(f_rx, beta_out) + D.hard * dot(e_tx, phi_in) * dot(f_rx, phi_out));
+  } else {
+    CVec3 e_in = cvec(e_tx);
+    if (before) e_in = reflect(e_in, d_first, *before, pa);
+    // The diffracted field leaving the edge along s_out.
+    CVec3 e_out = combine(-D.soft * cdot(e_in, beta_in), beta_out, -D.hard * cdot(e_in, phi_in), phi_out);
+    if (after) e_out = reflect(e_out, s_out, *after, pb);
+    field = cdot(e_out, f_rx);
+  }
   const double length = sp + sd;
   Path path;
   path.tau_s = length / kSpeedOfLight;
   const double phase = -2 * kPi * std::fmod(length / lambda, 1.0);
   path.a = (lambda / (4 * kPi)) / std::sqrt(sp * sd * length) * field * std::polar(1.0, phase);
-  path.theta_t = zenith(s_in);
-  path.phi_t = azimuth(s_in);
-  path.theta_r = zenith(-s_out);
-  path.phi_r = azimuth(-s_out);
-  path.doppler_hz = -(dot(s_in, -1.0 * from.velocity) + dot(s_out, to.velocity)) / lambda;
+  path.theta_t = zenith(d_first);
+  path.phi_t = azimuth(d_first);
+  path.theta_r = zenith(-1.0 * d_last);
+  path.phi_r = azimuth(-1.0 * d_last);
+  path.doppler_hz = -(dot(d_first, -1.0 * from.velocity) + dot(d_last, to.velocity)) / lambda;
+  if (before)
+    path.interactions.push_back(
+        Interaction{InteractionType::specular, scene.object(*before), scene.material(*before), p_before});
   path.interactions.push_back(Interaction{InteractionType::diffraction, edge.object, edge.material0, q});
+  if (after)
+    path.interactions.push_back(
+        Interaction{InteractionType::specular, scene.object(*after), scene.material(*after), p_after});
   return path;
 }
 
@@ -1188,6 +1265,34 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   }
   const auto t_edges = std::chrono::steady_clock::now();
   if (cfg.diffraction && !scene.edges().empty()) seen = edges_seen(scene, nodes, is_source, range);
+  // Reflection-diffraction: per node the (static face, edge) combinations
+  // its reflections reach; with the edges the other end sees, a pair's
+  // reflection-diffraction from its lower end and diffraction-reflection
+  // from its higher end.
+  std::vector<std::vector<ReflectedEdge>> reflected;
+  std::vector<std::vector<std::uint64_t>> seen_bits;
+  std::vector<std::vector<double>> edge_z, edge_r;  // each node's coordinate along each edge, distance from its line
+  if (!seen.empty() && cfg.diffraction_reflection) {
+    if (faces.refs.empty()) faces = image_faces(scene);
+    reflected.resize(n);
+    seen_bits.resize(n);
+    edge_z.resize(n);
+    edge_r.resize(n);
+    const auto& edges = scene.edges();
+    tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
+      if (!is_source[i]) return;
+      reflected_edges(scene, faces, nodes[i].position, range, reflected[i]);
+      seen_bits[i].assign((edges.size() + 63) / 64, 0);
+      for (auto k : seen[i]) seen_bits[i][k >> 6] |= std::uint64_t{1} << (k & 63);
+      edge_z[i].resize(edges.size());
+      edge_r[i].resize(edges.size());
+      for (std::size_t k = 0; k < edges.size(); ++k) {
+        const Vec3 w = nodes[i].position - edges[k].a;
+        edge_z[i][k] = dot(w, edges[k].e);
+        edge_r[i][k] = norm(w - edge_z[i][k] * edges[k].e);
+      }
+    });
+  }
   snap.stats.time.edges = seconds_since(t_edges);
 
   const double lambda = em.wavelength();
@@ -1268,6 +1373,26 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
             res.paths.push_back(std::move(*path));
           ++x;
           ++y;
+        }
+      }
+    }
+    if (!reflected.empty()) {
+      const auto sees = [&](std::uint32_t node, std::uint32_t k) { return (seen_bits[node][k >> 6] >> (k & 63)) & 1; };
+      for (int end = 0; end < 2; ++end) {
+        const auto from = end == 0 ? i : j, other = end == 0 ? j : i;
+        const auto& z_other = edge_z[other];
+        const auto& r_other = edge_r[other];
+        for (const ReflectedEdge& re : reflected[from]) {
+          if (!sees(other, re.edge)) continue;
+          // Keller's point from the image and the other end must lie on the
+          // part of the edge in the face's beam.
+          const double zq = (re.zt * r_other[re.edge] + z_other[re.edge] * re.rt) / (re.rt + r_other[re.edge]);
+          if (!(zq >= re.z0 && zq <= re.z1)) continue;
+          ++res.candidates;
+          const FaceRef face{0, re.face};
+          if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[re.edge], &rays,
+                                                   end == 0 ? &face : nullptr, end == 0 ? nullptr : &face))
+            res.paths.push_back(std::move(*path));
         }
       }
     }
