@@ -72,6 +72,7 @@ struct ImageFaces {
   // face): the beam a face reflects is the pyramid from the image through it.
   std::vector<std::uint32_t> outline_begin;  // static faces + 1
   std::vector<Vec3> outline;
+  std::vector<char> convex;  // per static face: its triangles fill its convex outline
   // A bounding-sphere tree over the static faces (depth-first; a node's
   // left child follows it): the order-2 search culls whole groups of second
   // faces against the first face's beam instead of testing each.
