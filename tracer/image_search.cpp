@@ -1057,6 +1057,41 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
 
 namespace raysweep::tracer {
 
+bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                           std::size_t count, const FaceRef* skip, double tol) {
+  if (count < 2) return false;
+  const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * tol;
+  // p inside static face g's convex outline by at least `margin` (the
+  // outline runs counter-clockwise about the normal: inside is to the left).
+  auto deep_inside = [&](std::uint32_t g, const Vec3& p) {
+    const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
+    const Vec3& n = faces.planes[g].normal;
+    for (std::uint32_t k = o0; k < o1; ++k) {
+      const Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
+      if (dot(cross(b - a, p - a), n) < margin * norm(b - a)) return false;
+    }
+    return true;
+  };
+  std::uint32_t blocker = ~0u;
+  for (std::size_t k = 0; k < count; ++k) {
+    const Vec3 w = points[k] - src;
+    const double len = norm(w);
+    if (!(len > 2 * margin)) return false;
+    const Vec3 dir = (1.0 / len) * w;
+    Hit hit;
+    if (!scene.closest_hit(src, dir, 0, len, hit, skip)) return false;
+    if (hit.face.instance != 0 || !faces.convex[hit.face.face]) return false;
+    if (blocker != ~0u && hit.face.face != blocker) return false;
+    blocker = hit.face.face;
+    const Plane& pb = faces.planes[blocker];
+    const double h_src = dot(pb.normal, src) - pb.offset, h_p = dot(pb.normal, points[k]) - pb.offset;
+    if (!(h_src * h_p < 0) || std::fabs(h_src) < margin || std::fabs(h_p) < margin ||
+        !deep_inside(blocker, src + hit.t * dir))
+      return false;
+  }
+  return true;
+}
+
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
                      std::vector<ReflectedEdge>& out) {
   const auto& edges = scene.edges();
@@ -1065,53 +1100,15 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
   std::vector<std::uint32_t> stack;
   // Whether the point p lies inside static face g's convex outline by at
   // least `margin`.
-  auto deep_inside = [&](std::uint32_t g, const Vec3& p, double margin) {
-    const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
-    const Vec3& n = faces.planes[g].normal;
-    for (std::uint32_t k = o0; k < o1; ++k) {
-      const Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
-      // The outline runs counter-clockwise about n: inside is to the left.
-      if (dot(cross(b - a, p - a), n) < margin * norm(b - a)) return false;
-    }
-    return true;
-  };
-  // Whether every point of face f is hidden from `src` by one convex static
-  // face: the rays to all of f's outline vertices first meet the same one,
-  // well inside it, src and the vertices well apart from its plane. Then
-  // every point of f's convex outline lies beyond that plane, and the
-  // leg from src to it crosses the plane inside the convex hull of those
-  // hits (a central projection keeps convex hulls), so inside the face: the
-  // first test of every path reflected by f fails. (The margin covers the
-  // on-face tolerance of the paths' reflection points.)
-  auto hidden = [&](std::uint32_t f) {
-    const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
-    if (o1 - o0 < 3) return false;
-    const FaceRef self{0, f};
-    const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * faces.tol[f];
-    std::uint32_t blocker = ~0u;
-    for (std::uint32_t k = o0; k < o1; ++k) {
-      const Vec3 w = faces.outline[k] - src;
-      const double len = norm(w);
-      if (!(len > 2 * margin)) return false;
-      const Vec3 dir = (1.0 / len) * w;
-      Hit hit;
-      if (!scene.closest_hit(src, dir, 0, len, hit, &self)) return false;
-      if (hit.face.instance != 0 || !faces.convex[hit.face.face]) return false;
-      if (blocker != ~0u && hit.face.face != blocker) return false;
-      blocker = hit.face.face;
-      const Plane& pb = faces.planes[blocker];
-      const double h_src = dot(pb.normal, src) - pb.offset, h_v = dot(pb.normal, faces.outline[k]) - pb.offset;
-      if (!(h_src * h_v < 0) || std::fabs(h_src) < margin || std::fabs(h_v) < margin ||
-          !deep_inside(blocker, src + hit.t * dir, margin))
-        return false;
-    }
-    return true;
-  };
   for (std::uint32_t f = 0; f < faces.static_count; ++f) {
     const Plane& pl = faces.planes[f];
     const double ds = dot(pl.normal, src) - pl.offset;
     if (ds == 0) continue;
-    if (hidden(f)) continue;
+    // A face hidden whole from src by one convex face reflects nothing of it.
+    const FaceRef self{0, f};
+    if (hidden_by_convex_face(scene, faces, src, &faces.outline[faces.outline_begin[f]],
+                              faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
+      continue;
     const Vec3 img = src - (2 * ds) * pl.normal;
     pyramid.clear();
     outline_pyramid(faces, f, img, pyramid);

@@ -180,7 +180,8 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
 // outline, on the source's side of the face, padded by the on-face
 // tolerance), within `range` of the image, seen by the image from outside
 // the wedge. A face in one of the wedge's planes is left out (the UTD
-// coefficient's reflection terms hold it).
+// coefficient's reflection terms hold it), and so is a face that one convex
+// face hides whole from the source (hidden_by_convex_face).
 struct ReflectedEdge {
   std::uint32_t face = 0;
   std::uint32_t edge = 0;
@@ -188,6 +189,18 @@ struct ReflectedEdge {
   double zt = 0, rt = 0;  // the image's coordinate along the edge, its distance from the edge's line
   auto operator<=>(const ReflectedEdge&) const = default;
 };
+// Whether one convex static face hides the convex hull of `points` (a
+// face's outline, an edge's two ends) whole from `src`: the rays to every
+// point first meet the same convex face (ImageFaces::convex; `skip`
+// ignored), well inside it, with src and the points well apart from its
+// plane (a margin over `tol`, the on-face tolerance of what is hidden). A
+// point of the hull is a convex combination of the points, and the ray to
+// it crosses the face's plane inside the convex hull of those hits (a
+// central projection keeps convex hulls): every segment from src to the
+// hull crosses that face. Exact, and conservative: false whenever unsure.
+bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                           std::size_t count, const FaceRef* skip, double tol);
+
 // Every such combination from `src`, sorted (reflection-diffraction; from
 // the other end, diffraction-reflection).
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,

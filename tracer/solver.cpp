@@ -976,9 +976,12 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
 
 namespace {
 
-// Edges each node can see the outside of, within `range` of it: the cheap
-// half of the diffraction test (a pair needs an edge both its ends see).
-std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, const std::vector<Node>& nodes,
+// Edges each node can see the outside of, within `range` of it, and that
+// no single convex face hides whole from it (hidden_by_convex_face: then
+// every leg between the node and the edge is blocked): the cheap half of
+// the diffraction test (a pair needs an edge both its ends see).
+std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, const ImageFaces& faces,
+                                                   const std::vector<Node>& nodes,
                                                    const std::vector<unsigned char>& wanted, double range) {
   const auto& edges = scene.edges();
   std::vector<std::vector<std::uint32_t>> seen(nodes.size());
@@ -991,7 +994,10 @@ std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, cons
       const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
       const Vec3 v = w - dot(w, e.e) * e.e;
       if (norm(p - (e.a + z * e.e)) > range) continue;
-      if (edge_angle(e, v) <= e.n * kPi) seen[i].push_back(k);
+      if (edge_angle(e, v) > e.n * kPi) continue;
+      const Vec3 ends[2] = {e.a, e.b};
+      if (hidden_by_convex_face(scene, faces, p, ends, 2, nullptr, 0)) continue;
+      seen[i].push_back(k);
     }
   });
   return seen;
@@ -1264,7 +1270,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     snap.stats.time.diffuse_views = seconds_since(t_tiles);
   }
   const auto t_edges = std::chrono::steady_clock::now();
-  if (cfg.diffraction && !scene.edges().empty()) seen = edges_seen(scene, nodes, is_source, range);
+  if (cfg.diffraction && !scene.edges().empty()) {
+    if (faces.refs.empty()) faces = image_faces(scene);
+    seen = edges_seen(scene, faces, nodes, is_source, range);
+  }
   // Reflection-diffraction: per node the (static face, edge) combinations
   // its reflections reach; with the edges the other end sees, a pair's
   // reflection-diffraction from its lower end and diffraction-reflection
@@ -1273,7 +1282,6 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   std::vector<std::vector<std::uint64_t>> seen_bits;
   std::vector<std::vector<double>> edge_z, edge_r;  // each node's coordinate along each edge, distance from its line
   if (!seen.empty() && cfg.diffraction_reflection) {
-    if (faces.refs.empty()) faces = image_faces(scene);
     reflected.resize(n);
     seen_bits.resize(n);
     edge_z.resize(n);
