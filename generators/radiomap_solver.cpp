@@ -83,9 +83,16 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       const Vec3 w = tx.position - e.a;
       const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
       if (norm(tx.position - (e.a + z * e.e)) > range) continue;
-      if (edge_angle(e, w - dot(w, e.e) * e.e) <= e.n * kPi) tx_edges.push_back(k);
+      if (edge_angle(e, w - dot(w, e.e) * e.e) > e.n * kPi) continue;
+      // Hidden whole from the transmitter by one convex face: no leg reaches it.
+      const Vec3 ends[2] = {e.a, e.b};
+      if (!tracer::hidden_by_convex_face(scene, faces, tx.position, ends, 2, nullptr, 0)) tx_edges.push_back(k);
     }
   }
+  // The same as a bitset: a point's diffraction-reflection needs an edge the
+  // transmitter sees.
+  std::vector<std::uint64_t> tx_edge_bits((scene.edges().size() + 63) / 64, 0);
+  for (auto k : tx_edges) tx_edge_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
   // Reflection-diffraction (a static face, then the edge), as `trace`
   // lists it from a pair's ends; the transmitter's list once.
   std::vector<tracer::ReflectedEdge> tx_reflected;
@@ -176,9 +183,8 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       // The reflection after the edge: the point's own list (its images).
       if (cfg.diffraction && cfg.diffraction_reflection) {
         rx_reflected.clear();
-        tracer::reflected_edges(scene, faces, rx.position, range, rx_reflected);
+        tracer::reflected_edges(scene, faces, rx.position, range, rx_reflected, &tx_edge_bits);
         for (const auto& re : rx_reflected) {
-          if (!std::binary_search(tx_edges.begin(), tx_edges.end(), re.edge)) continue;  // tx sees its outside
           const tracer::Edge& e = scene.edges()[re.edge];
           const Vec3 w = tx.position - e.a;
           const double zt = dot(w, e.e), rt = norm(w - zt * e.e);

@@ -1093,18 +1093,17 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
 }
 
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out) {
+                     std::vector<ReflectedEdge>& out, const std::vector<std::uint64_t>* only) {
   const auto& edges = scene.edges();
   if (edges.empty()) return;
   std::vector<Vec3> pyramid;
   std::vector<std::uint32_t> stack;
-  // Whether the point p lies inside static face g's convex outline by at
-  // least `margin`.
   for (std::uint32_t f = 0; f < faces.static_count; ++f) {
     const Plane& pl = faces.planes[f];
     const double ds = dot(pl.normal, src) - pl.offset;
     if (ds == 0) continue;
-    // A face hidden whole from src by one convex face reflects nothing of it.
+    // A face hidden whole from src by one convex face reflects nothing to
+    // its edges (a few rays: cheaper than the walk below).
     const FaceRef self{0, f};
     if (hidden_by_convex_face(scene, faces, src, &faces.outline[faces.outline_begin[f]],
                               faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
@@ -1123,6 +1122,7 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
       return outside_pyramid(pyramid, img, sp, tol + faces.tol[f], spread_per_m);
     };
     walk_tree(faces.edge_tree, faces.edge_order, stack, outside, [&](std::uint32_t k) {
+      if (only && !(((*only)[k >> 6] >> (k & 63)) & 1)) return;
       if (outside(faces.edge_spheres[k], 0)) return;
       const Edge& e = edges[k];
       // The part of the edge inside the beam: the segment clipped by the
