@@ -1160,6 +1160,12 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
                               std::fabs(dot(pw.normal, pl.normal) * pw.offset - pl.offset) < 1e-6))
           return;
       }
+      // The reflection points of this part: a segment on f (the central
+      // projection of the part from the image); hidden whole from src, no
+      // path reflected there reaches the edge.
+      const Vec3 ends[2] = {crossing(img, -ds, e.a + z0 * e.e, dot(pl.normal, e.a + z0 * e.e) - pl.offset),
+                            crossing(img, -ds, e.a + z1 * e.e, dot(pl.normal, e.a + z1 * e.e) - pl.offset)};
+      if (hidden_by_convex_face(scene, faces, src, ends, 2, &self, faces.tol[f])) return;
       out.push_back({f, k, z0, z1, zt, norm(v)});
     });
   }
