@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "closed_forms.hpp"
+#include "tracer/image_search.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;
@@ -1000,6 +1001,49 @@ TEST(DiffractionReflection, NoPathWhereTheReflectionPointIsOffItsFace) {
   // Closer to the screen the point is on the quad (x_g = -15.4 m).
   EXPECT_TRUE(tracer::compute_diffraction_path(scene, em, node("tx", {-20, 0, 1.5}), node("rx", {g.d2, 0, 1.5}), *top,
                                                nullptr, &ground, nullptr));
+}
+
+TEST(DiffractionReflection, HiddenByOneConvexFaceOnlyWhenEveryLegCrossesIt) {
+  // A blocker x = 10 (y in [-5, 5], z in [0, 10]) between the source and
+  // targets at x = 20; seen from (0, 0, 4) the blocker's border y = 5
+  // projects to y = 10 at x = 20.
+  meshkit::Scene s;
+  add_quad(s, "concrete", "blocker", {10, -5, 0}, {10, 5, 0}, {10, 5, 10}, {10, -5, 10});
+  add_quad(s, "concrete", "far", {20, -40, 0}, {20, 40, 0}, {20, 40, 10}, {20, -40, 10});
+  tracer::TraceScene scene(s);
+  const auto faces = tracer::image_faces(scene);
+  ASSERT_EQ(faces.static_count, 2u);
+  const Vec3 src{0, 0, 4};
+  const tracer::FaceRef far{0, 1};
+  auto hidden = [&](std::vector<Vec3> pts) {
+    return tracer::hidden_by_convex_face(scene, faces, src, pts.data(), pts.size(), &far, 0);
+  };
+  // Every leg from src to the hull of the points, sampled: blocked?
+  auto all_blocked = [&](const std::vector<Vec3>& pts) {
+    for (int a = 0; a <= 20; ++a)
+      for (int b = 0; a + b <= 20; ++b) {
+        const double u = a / 20.0, v = b / 20.0;
+        const Vec3 p = pts.size() == 2 ? pts[0] + u * (pts[1] - pts[0])
+                                       : pts[0] + u * (pts[1] - pts[0]) + v * (pts[2] - pts[0]);
+        const Vec3 w = p - src;
+        if (!scene.occluded(src, tracer::normalize(w), 1e-4, tracer::norm(w) - 1e-4, &far)) return false;
+      }
+    return true;
+  };
+  const std::vector<Vec3> inside{{20, -8, 2}, {20, 8, 2}, {20, 0, 7}};
+  EXPECT_TRUE(hidden(inside));
+  EXPECT_TRUE(all_blocked(inside));
+  const std::vector<Vec3> segment{{20, -9, 5}, {20, 9, 5}};
+  EXPECT_TRUE(hidden(segment));
+  EXPECT_TRUE(all_blocked(segment));
+  // Past the border (y = 12 at x = 20 crosses x = 10 at y = 6): some legs pass.
+  const std::vector<Vec3> past{{20, 0, 5}, {20, 12, 5}};
+  EXPECT_FALSE(hidden(past));
+  EXPECT_FALSE(all_blocked(past));
+  // Within the margin of the border (y = 9.99 crosses at 4.995): not claimed.
+  EXPECT_FALSE(hidden({{20, 0, 5}, {20, 9.99, 5}}));
+  // The far face itself is no blocker (skipped), nor is anything behind src.
+  EXPECT_FALSE(tracer::hidden_by_convex_face(scene, faces, Vec3{15, 0, 4}, inside.data(), inside.size(), &far, 0));
 }
 
 TEST(DiffractionReflection, CornerThenFacingWallThroughTheSnapshot) {
