@@ -517,6 +517,15 @@ struct DiffuseTargets {
   double bin_s = 1e-7;  // delay bin width
   // Samples below this power (|a|^2) play Russian roulette (0: none).
   double roulette = 0;
+  // Per node, the static faces one convex face hides whole from it
+  // (hidden_by_convex_face; a bitset over the static faces, empty: none
+  // known): no shadow ray from such a face to that node can be clear.
+  const std::vector<std::vector<std::uint64_t>>* hidden = nullptr;
+  bool hides(std::uint32_t node, const FaceRef& face) const {
+    if (!hidden || face.instance != 0) return false;
+    const auto& bits = (*hidden)[node];
+    return !bits.empty() && ((bits[face.face >> 6] >> (face.face & 63)) & 1);
+  }
 };
 
 // The roulette's threshold for `cfg` (TracerConfig::diffuse_roulette_db).
@@ -805,6 +814,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
                                      sample_uniform(std::uint64_t{src} << 32 | r, hit_no, std::uint64_t{j} << 1 | reverse));
             if (weight == 0) return;
           }
+          if (diffuse->hides(j, hit.face)) return;  // its shadow ray would be blocked
           ++rays;
           if (scene.occluded(p, ks, 0, rs - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) return;
           const double power = scattered(e_ref, ks, f, rs, nodes[j].forward) * balance * weight;
@@ -847,6 +857,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
                                      sample_uniform(std::uint64_t{src} << 32 | r, hit_no, std::uint64_t{j} << 1 | 1));
             if (weight == 0) continue;
           }
+          if (diffuse->hides(j, hit.face)) continue;
           ++rays;
           if (scene.occluded(p, -1.0 * ki, 0, la - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
           const auto ca = em.coefficients(mat, cos_a);
@@ -1110,8 +1121,28 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     for (std::size_t p = 0; p < pairs.size(); ++p)
       if (in_range[p]) candidates[p] = all;
   }
+  std::vector<std::vector<std::uint64_t>> hidden_faces;
   if ((sbr_specular || ray_diffuse) && n > 1) {
     const auto t_shoot = std::chrono::steady_clock::now();
+    // The rough static faces one convex face hides whole from each node: the
+    // diffuse gathering's shadow rays from them to it are blocked, so not cast.
+    if (ray_diffuse && n > 1) {
+      if (faces.refs.empty()) faces = image_faces(scene);
+      hidden_faces.resize(n);
+      tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t j) {
+        if (!is_source[j]) return;
+        auto& bits = hidden_faces[j];
+        bits.assign((faces.static_count + 63) / 64, 0);
+        for (std::uint32_t f = 0; f < faces.static_count; ++f) {
+          if (!(em.material(scene.material(faces.refs[f])).scattering.s > 0)) continue;
+          const FaceRef self{0, f};
+          if (hidden_by_convex_face(scene, faces, nodes[j].position, &faces.outline[faces.outline_begin[f]],
+                                    faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
+            bits[f >> 6] |= std::uint64_t{1} << (f & 63);
+        }
+      });
+      for (auto& t : targets) t.hidden = &hidden_faces;
+    }
     const auto lattice = fibonacci_sphere(cfg.rays_per_source);
     const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
     struct TaskOut {
