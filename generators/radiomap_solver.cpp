@@ -89,10 +89,6 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       if (!tracer::hidden_by_convex_face(scene, faces, tx.position, ends, 2, nullptr, 0)) tx_edges.push_back(k);
     }
   }
-  // The same as a bitset: a point's diffraction-reflection needs an edge the
-  // transmitter sees.
-  std::vector<std::uint64_t> tx_edge_bits((scene.edges().size() + 63) / 64, 0);
-  for (auto k : tx_edges) tx_edge_bits[k >> 6] |= std::uint64_t{1} << (k & 63);
   // Reflection-diffraction (a static face, then the edge), as `trace`
   // lists it from a pair's ends; the transmitter's list once.
   std::vector<tracer::ReflectedEdge> tx_reflected;
@@ -124,7 +120,6 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
     for (auto& c : found) cand[c.rx].push_back(std::move(c.faces));
 
     std::vector<std::uint32_t> blockers;
-    std::vector<tracer::ReflectedEdge> rx_reflected;
     for (std::uint32_t r = 1; r < nodes.size(); ++r) {
       RadioMapPointResult& res = out[begin + r - 1];
       const Node& rx = nodes[r];
@@ -175,26 +170,11 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
         const double zr = dot(w, e.e), rr = norm(w - zr * e.e);
         const double zq = (re.zt * rr + zr * re.rt) / (re.rt + rr);
         if (!(zq >= re.z0 && zq <= re.z1)) continue;
+        if (edge_angle(e, w - zr * e.e) > e.n * kPi) continue;  // the point inside the wedge
         ++st.candidates;
         const tracer::FaceRef face{0, re.face};
         if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, e, &st.rays, &face, nullptr))
           add(std::norm(p->a));
-      }
-      // The reflection after the edge: the point's own list (its images).
-      if (cfg.diffraction && cfg.diffraction_reflection) {
-        rx_reflected.clear();
-        tracer::reflected_edges(scene, faces, rx.position, range, rx_reflected, &tx_edge_bits);
-        for (const auto& re : rx_reflected) {
-          const tracer::Edge& e = scene.edges()[re.edge];
-          const Vec3 w = tx.position - e.a;
-          const double zt = dot(w, e.e), rt = norm(w - zt * e.e);
-          const double zq = (re.zt * rt + zt * re.rt) / (re.rt + rt);
-          if (!(zq >= re.z0 && zq <= re.z1)) continue;
-          ++st.candidates;
-          const tracer::FaceRef face{0, re.face};
-          if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, e, &st.rays, nullptr, &face))
-            add(std::norm(p->a));
-        }
       }
       res.gain = gain;
       res.paths = n_paths;

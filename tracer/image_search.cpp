@@ -1093,7 +1093,7 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
 }
 
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out, const std::vector<std::uint64_t>* only) {
+                     std::vector<ReflectedEdge>& out) {
   const auto& edges = scene.edges();
   if (edges.empty()) return;
   std::vector<Vec3> pyramid;
@@ -1122,7 +1122,6 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
       return outside_pyramid(pyramid, img, sp, tol + faces.tol[f], spread_per_m);
     };
     walk_tree(faces.edge_tree, faces.edge_order, stack, outside, [&](std::uint32_t k) {
-      if (only && !(((*only)[k >> 6] >> (k & 63)) & 1)) return;
       if (outside(faces.edge_spheres[k], 0)) return;
       const Edge& e = edges[k];
       // The part of the edge inside the beam: the segment clipped by the

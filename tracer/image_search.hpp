@@ -203,8 +203,7 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
 
 // Every such combination from `src`, sorted (reflection-diffraction; from
 // the other end, diffraction-reflection).
-// With `only` (a bitset over the edges), only those edges.
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out, const std::vector<std::uint64_t>* only = nullptr);
+                     std::vector<ReflectedEdge>& out);
 
 }  // namespace raysweep::tracer
