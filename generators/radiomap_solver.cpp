@@ -168,8 +168,7 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
         const tracer::Edge& e = scene.edges()[re.edge];
         const Vec3 w = rx.position - e.a;
         const double zr = dot(w, e.e), rr = norm(w - zr * e.e);
-        const double zq = (re.zt * rr + zr * re.rt) / (re.rt + rr);
-        if (!(zq >= re.z0 && zq <= re.z1)) continue;
+        if (!re.keller_on_part(zr, rr)) continue;
         if (edge_angle(e, w - zr * e.e) > e.n * kPi) continue;  // the point inside the wedge
         ++st.candidates;
         const tracer::FaceRef face{0, re.face};

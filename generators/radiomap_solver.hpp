@@ -15,6 +15,10 @@
 //     `trace`, and the caller adds tracer::diffuse_power (the same gathering
 //     from the transmitter's rays); otherwise they reflect their whole
 //     |Gamma|^2 (energy kept, no lobe);
+//   - diffraction with a reflection: before the edge only (the
+//     transmitter's list of reflected edges, once); after it (near the
+//     point, which `trace` lists from the pair's other end) each point would
+//     need its own list, 7x the map's time (docs/radiomap.md);
 //   - the direct path through vehicles (NLOSV) is the free-space path times
 //     the vehicles' knife-edge loss (trace also tries it through windows).
 // The error against `trace` is measured by test_radiomap and reported in

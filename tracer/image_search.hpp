@@ -187,6 +187,13 @@ struct ReflectedEdge {
   std::uint32_t edge = 0;
   double z0 = 0, z1 = 0;  // the part in the beam: edge.a + z edge.e, z0 <= z <= z1
   double zt = 0, rt = 0;  // the image's coordinate along the edge, its distance from the edge's line
+  // Whether Keller's point between the image and a point at coordinate z
+  // along the edge, r from its line, lies on the part in the beam (the
+  // cheap per-pair filter before the exact path).
+  bool keller_on_part(double z, double r) const {
+    const double zq = (zt * r + z * rt) / (rt + r);
+    return zq >= z0 && zq <= z1;
+  }
   auto operator<=>(const ReflectedEdge&) const = default;
 };
 // Whether one convex static face hides the convex hull of `points` (a

@@ -28,6 +28,14 @@ CVec3 combine(cdouble a, const Vec3& u, cdouble b, const Vec3& w) {
   return {a * u[0] + b * w[0], a * u[1] + b * w[1], a * u[2] + b * w[2]};
 }
 
+// Field e, travelling along k_in, reflected by a face of plane normal n
+// with slab coefficients c (TE/TM in the face's basis), keeping `keep` of
+// it (a rough surface's specular share).
+CVec3 reflect_field(const CVec3& e, const Vec3& k_in, const Vec3& n, const SlabCoefficients& c, double keep) {
+  const Vec3 es = te_basis(k_in, n);
+  const Vec3 k_out = k_in - (2 * dot(k_in, n)) * n;
+  return combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, cross(es, k_in)), cross(es, k_out));
+}
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
@@ -245,16 +253,14 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     const double cos_theta = std::fabs(dot(k_in, p.normal));
     const auto mat = scene.material(ev.face);
     const auto c = em.coefficients(mat, cos_theta);
-    const Vec3 es = te_basis(k_in, p.normal);
-    const Vec3 ep_in = cross(es, k_in);
     if (ev.reflection) {
-      const Vec3 k_out = k_in - (2 * dot(k_in, p.normal)) * p.normal;
       // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
       // scattered part is traced (effective roughness energy partition).
-      const double keep = em.specular_keep(mat);
-      e = combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, ep_in), cross(es, k_out));
+      e = reflect_field(e, k_in, p.normal, c, em.specular_keep(mat));
     } else {
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
+      const Vec3 es = te_basis(k_in, p.normal);
+      const Vec3 ep_in = cross(es, k_in);
       e = combine(c.t.te * cdot(e, es), es, c.t.tm * cdot(e, ep_in), ep_in);
     }
     path.interactions.push_back(Interaction{ev.reflection ? InteractionType::specular : InteractionType::refraction,
@@ -408,11 +414,8 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   // A reflection of field e travelling along k_in on face f (plane pl).
   auto reflect = [&](const CVec3& e, const Vec3& k_in, const FaceRef& f, const Plane& pl) {
     const auto mat = scene.material(f);
-    const auto c = em.coefficients(mat, std::fabs(dot(k_in, pl.normal)));
-    const Vec3 es = te_basis(k_in, pl.normal);
-    const Vec3 k_out = k_in - (2 * dot(k_in, pl.normal)) * pl.normal;
-    const double keep = em.specular_keep(mat);
-    return combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, cross(es, k_in)), cross(es, k_out));
+    return reflect_field(e, k_in, pl.normal, em.coefficients(mat, std::fabs(dot(k_in, pl.normal))),
+                         em.specular_keep(mat));
   };
   const Vec3 e_tx = antenna_field(em.radio().antenna, d_first, from.forward);
   const Vec3 f_rx = antenna_field(em.radio().antenna, -1.0 * d_last, to.forward);
@@ -1423,10 +1426,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         const auto& r_other = edge_r[other];
         for (const ReflectedEdge& re : reflected[from]) {
           if (!sees(other, re.edge)) continue;
-          // Keller's point from the image and the other end must lie on the
-          // part of the edge in the face's beam.
-          const double zq = (re.zt * r_other[re.edge] + z_other[re.edge] * re.rt) / (re.rt + r_other[re.edge]);
-          if (!(zq >= re.z0 && zq <= re.z1)) continue;
+          if (!re.keller_on_part(z_other[re.edge], r_other[re.edge])) continue;
           ++res.candidates;
           const FaceRef face{0, re.face};
           if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[re.edge], &rays,
