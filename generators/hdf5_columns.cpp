@@ -4,6 +4,9 @@
 // keep it that way when changing anything here.
 #include "generators/hdf5_columns.hpp"
 
+#include <tbb/parallel_for.h>
+#include <zlib.h>
+
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -103,6 +106,37 @@ void write_str_attr(const std::string& file, const Types& types, hid_t loc, cons
 }
 
 constexpr std::size_t kFlushBytes = std::size_t{1} << 20;  // write when a buffer holds about this much
+constexpr int kDeflateLevel = 4;
+// Chunks handed to H5Dwrite_chunk are in the file's byte order (little endian).
+constexpr bool kLittleEndian = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
+
+namespace {
+
+// What HDF5's shuffle then deflate filters make of one chunk (H5Zshuffle.c's
+// byte planes, H5Zdeflate.c's zlib stream at the same level), so chunks can be
+// compressed on every core and handed to H5Dwrite_chunk: the library's own
+// filter pipeline runs on the calling thread only. Readers see an ordinary
+// shuffle + deflate chunk.
+std::vector<unsigned char> shuffle_deflate(const unsigned char* in, std::size_t bytes, std::size_t element) {
+  std::vector<unsigned char> shuffled;
+  const std::size_t n = element > 1 ? bytes / element : 0;
+  if (n > 1) {
+    shuffled.resize(bytes);
+    unsigned char* out = shuffled.data();
+    for (std::size_t b = 0; b < element; ++b)
+      for (std::size_t i = 0; i < n; ++i) *out++ = in[i * element + b];
+    std::copy(in + n * element, in + bytes, out);  // a partial element stays last, as the filter leaves it
+    in = shuffled.data();
+  }
+  uLongf size = compressBound(static_cast<uLong>(bytes));
+  std::vector<unsigned char> z(size);
+  if (compress2(z.data(), &size, in, static_cast<uLong>(bytes), kDeflateLevel) != Z_OK)
+    throw std::runtime_error("zlib: cannot deflate a chunk");
+  z.resize(size);
+  return z;
+}
+
+}  // namespace
 
 void Column::flush(const std::string& file, bool all) {
   hsize_t rows = buffered_rows();
@@ -243,7 +277,7 @@ Column* ColumnFile::column(const std::string& group_name, const std::string& nam
   if (space.get() < 0) write_fail(file_, c->name, "cannot create dataspace");
   Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (dcpl.get() < 0 || H5Pset_chunk(dcpl.get(), c->rank, chunk_dims) < 0 || H5Pset_shuffle(dcpl.get()) < 0 ||
-      H5Pset_deflate(dcpl.get(), 4) < 0 || H5Pset_obj_track_times(dcpl.get(), 0) < 0 ||
+      H5Pset_deflate(dcpl.get(), kDeflateLevel) < 0 || H5Pset_obj_track_times(dcpl.get(), 0) < 0 ||
       H5Pset_fill_time(dcpl.get(), H5D_FILL_TIME_NEVER) < 0)
     write_fail(file_, c->name, "cannot set dataset creation properties");
   c->dset = Handle(H5Dcreate2(group(group_name), name.c_str(), types_.file(c->dtype), space.get(), H5P_DEFAULT,
@@ -279,11 +313,53 @@ void ColumnFile::table(const std::string& group_name, const std::string& name, D
   if (dset.close() < 0) write_fail(file_, where, "cannot close dataset");
 }
 
+void ColumnFile::write_whole_chunks(bool full_buffers_only) {
+  struct Job {
+    Column* column;
+    std::size_t chunk;  // index among the column's buffered whole chunks
+    std::vector<unsigned char> z;
+  };
+  std::vector<Job> jobs;
+  for (auto& c : columns_) {
+    // Strings are pointers in memory; a column that ever wrote a partial
+    // chunk is no longer chunk-aligned. Both take the library's path.
+    if (c->dtype == Dtype::str || c->rows_written % c->chunk_rows != 0 || !kLittleEndian) continue;
+    if (full_buffers_only && c->buf.size() < kFlushBytes) continue;
+    const hsize_t chunks = c->buffered_rows() / c->chunk_rows;
+    for (hsize_t k = 0; k < chunks; ++k) jobs.push_back({c.get(), static_cast<std::size_t>(k), {}});
+  }
+  if (jobs.empty()) return;
+  tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t j) {
+    Job& job = jobs[j];
+    const std::size_t bytes = static_cast<std::size_t>(job.column->chunk_rows) * job.column->row_bytes();
+    job.z = shuffle_deflate(job.column->buf.data() + job.chunk * bytes, bytes, dtype_bytes(job.column->dtype));
+  });
+  // Written in column then chunk order, on this thread: the same calls for the same input.
+  for (std::size_t j = 0; j < jobs.size();) {
+    Column& c = *jobs[j].column;
+    std::size_t e = j;
+    while (e < jobs.size() && jobs[e].column == &c) ++e;
+    const hsize_t rows = static_cast<hsize_t>(e - j) * c.chunk_rows;
+    const hsize_t new_dims[2] = {c.rows_written + rows, c.width};
+    if (H5Dset_extent(c.dset.get(), new_dims) < 0) write_fail(file_, c.name, "cannot extend dataset");
+    for (; j < e; ++j) {
+      const hsize_t offset[2] = {c.rows_written + jobs[j].chunk * c.chunk_rows, 0};
+      if (H5Dwrite_chunk(c.dset.get(), H5P_DEFAULT, 0, offset, jobs[j].z.size(), jobs[j].z.data()) < 0)
+        write_fail(file_, c.name, "cannot write a chunk");
+      jobs[j].z = {};
+    }
+    c.buf.erase(c.buf.begin(), c.buf.begin() + static_cast<std::ptrdiff_t>(rows * c.row_bytes()));
+    c.rows_written += rows;
+  }
+}
+
 void ColumnFile::maybe_flush() {
+  write_whole_chunks(true);
   for (auto& c : columns_) c->maybe_flush(file_);
 }
 
 void ColumnFile::flush_all() {
+  write_whole_chunks(false);
   for (auto& c : columns_) c->flush(file_, true);
 }
 

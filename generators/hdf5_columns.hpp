@@ -152,6 +152,10 @@ class ColumnFile {
   std::unordered_map<std::string, Handle> groups_;
   std::vector<std::unique_ptr<Column>> columns_;
 
+  // The buffered whole chunks of the chunk-aligned columns (of those holding
+  // about a flush's worth when full_buffers_only), compressed in parallel.
+  void write_whole_chunks(bool full_buffers_only);
+
   hsize_t fixed_dim(const nlohmann::json& d) const;
   const nlohmann::json& attr_spec(const std::string& group, const std::string& name, const char* dtype) const;
   void dataset_attrs(hid_t dset, const std::string& where, const nlohmann::json& spec);

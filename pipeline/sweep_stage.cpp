@@ -392,10 +392,11 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   summary["bytes"] = fs::file_size(out);
   summary["bytes_per_link"] = links ? static_cast<double>(fs::file_size(out)) / links : 0.0;
   summary["dropped_outside"] = dropped_outside;
-  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s; {} "
-               "({:.0f} bytes per pair-frame)",
+  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s "
+               "({:.1f} s tracing); {} ({:.0f} bytes per pair-frame)",
                totals["frames"].get<std::uint64_t>(), blocks_resumed, links, traced,
-               100 * summary["cache_hit_ratio"].get<double>(), wall, args.out, summary["bytes_per_link"].get<double>());
+               100 * summary["cache_hit_ratio"].get<double>(), wall, totals["trace_seconds"].get<double>(), args.out,
+               summary["bytes_per_link"].get<double>());
   return summary;
 }
 

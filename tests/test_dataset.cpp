@@ -1,6 +1,7 @@
 // HDF5 channel dataset: writer round trip (read back with the HDF5 C API),
 // validation of corrupt files, determinism, frame blocks, and the Python reader.
 #include <gtest/gtest.h>
+#include <tbb/global_control.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -667,6 +668,91 @@ TEST(Dataset, DeterministicBytes) {
   ASSERT_FALSE(a.empty());
   EXPECT_EQ(a.size(), b.size());
   EXPECT_TRUE(a == b) << "files differ";
+}
+
+// A frame large enough that the writer compresses whole chunks itself, in
+// parallel (shuffle + deflate handed to H5Dwrite_chunk): HDF5 reads every value
+// back through its own filters, the chunks say both filters ran, and the bytes
+// do not depend on the thread count.
+TEST(Dataset, ChunksCompressedInParallelReadBackExactly) {
+  const fs::path dir = tmp_dir("parallel-chunks");
+  constexpr std::uint32_t kPaths = 70000, kPer = 3;  // 210,000 interactions: 2.5 MB of points
+  FrameRecord f;
+  f.time_s = 1.0;
+  Builder b;
+  f.nodes = {b.state(0, 1.0), b.state(1, 1.0)};
+  LinkRecord l;
+  l.tx = 0;
+  l.rx = 1;
+  l.path_count = kPaths;
+  l.gain_coherent_db = l.gain_incoherent_db = -80.f;
+  f.links = {l};
+  f.cfr.assign(kK, {0.5f, -0.25f});
+  for (std::uint32_t p = 0; p < kPaths; ++p) {
+    PathRecord r;
+    r.a = {std::sin(0.001f * static_cast<float>(p)), 1e-6f * static_cast<float>(p % 977)};
+    r.tau_s = 1e-7 + 1e-12 * p;
+    r.doppler_hz = static_cast<float>(p % 301) - 150.f;
+    r.interaction_count = kPer;
+    f.paths.push_back(r);
+    for (std::uint32_t k = 0; k < kPer; ++k) {
+      InteractionRecord in;
+      in.type = static_cast<std::uint8_t>(1 + (p + k) % 4);
+      in.object = (p * 7 + k) % 6;
+      in.x = 0.5f * static_cast<float>(p % 1000);
+      in.y = -static_cast<float>(k);
+      in.z = 1e-3f * static_cast<float>(p);
+      f.interactions.push_back(in);
+    }
+  }
+  auto write = [&](const fs::path& file, int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    DatasetWriter w(file, test_header());
+    w.append(f);
+    w.finish(test_nodes(), test_objects());
+  };
+  write(dir / "one.h5", 1);
+  write(dir / "two.h5", 2);
+  const std::string one = read_bytes(dir / "one.h5");
+  EXPECT_TRUE(one == read_bytes(dir / "two.h5")) << "bytes depend on the thread count";
+
+  const fs::path file = dir / "two.h5";
+  const auto a = read_complex(file, "/paths/a");
+  const auto tau = read_ds<double>(file, "/paths/tau_s", H5T_NATIVE_DOUBLE);
+  const auto dop = read_ds<float>(file, "/paths/doppler_hz", H5T_NATIVE_FLOAT);
+  const auto type = read_ds<std::uint8_t>(file, "/interactions/type", H5T_NATIVE_UINT8);
+  const auto object = read_ds<std::uint32_t>(file, "/interactions/object", H5T_NATIVE_UINT32);
+  std::vector<hsize_t> dims;
+  const auto point = read_ds<float>(file, "/interactions/point", H5T_NATIVE_FLOAT, &dims);
+  ASSERT_EQ(a.size(), kPaths);
+  ASSERT_EQ(tau.size(), kPaths);
+  ASSERT_EQ(dop.size(), kPaths);
+  ASSERT_EQ(type.size(), kPaths * kPer);
+  ASSERT_EQ(object.size(), kPaths * kPer);
+  ASSERT_EQ(point.size(), 3u * kPaths * kPer);
+  std::size_t wrong = 0;
+  for (std::uint32_t p = 0; p < kPaths; ++p) {
+    wrong += a[p] != f.paths[p].a || tau[p] != f.paths[p].tau_s || dop[p] != f.paths[p].doppler_hz;
+    for (std::uint32_t k = 0; k < kPer; ++k) {
+      const std::size_t m = p * kPer + k;
+      const auto& in = f.interactions[m];
+      wrong += type[m] != in.type || object[m] != in.object || point[3 * m] != in.x || point[3 * m + 1] != in.y ||
+               point[3 * m + 2] != in.z;
+    }
+  }
+  EXPECT_EQ(wrong, 0u);
+
+  // Chunk 1 of the points (rows 16384..32767) went through both filters and shrank.
+  H5 h{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+  H5 d{H5Dopen2(h.id, "/interactions/point", H5P_DEFAULT), H5Dclose};
+  const hsize_t offset[2] = {16384, 0};
+  unsigned mask = 1;
+  haddr_t addr = 0;
+  hsize_t size = 0;
+  ASSERT_GE(H5Dget_chunk_info_by_coord(d.id, offset, &mask, &addr, &size), 0);
+  EXPECT_EQ(mask, 0u);
+  EXPECT_GT(size, 0u);
+  EXPECT_LT(size, 16384u * 3 * sizeof(float));
 }
 
 TEST(Dataset, EmbeddedSchemaMatchesSourceFile) {
