@@ -280,6 +280,18 @@ TEST(Diffraction, TransitionFunctionMatchesQuadrature) {
     EXPECT_LT(rel, 1e-6) << "X = " << X << " got " << got << " expected " << expect;
   }
   std::printf("utd_transition: worst relative error %.3g over X in [1e-4, 100]\n", worst);
+  // Beyond: the asymptotic series the tracer switches to at X = 40, against
+  // the quadrature and, for continuity, across the switch.
+  double worst_far = 0;
+  for (int i = 0; i <= 80; ++i) {
+    const double X = std::pow(10.0, 1 + 4.0 * i / 80);  // 10 .. 1e5
+    const double rel = std::abs(tracer::utd_transition(X) - transition_ref(X)) / std::abs(transition_ref(X));
+    worst_far = std::max(worst_far, rel);
+    EXPECT_LT(rel, 1e-9) << "X = " << X;
+  }
+  std::printf("utd_transition: worst relative error %.3g over X in [10, 1e5]\n", worst_far);
+  const cd below = tracer::utd_transition(std::nextafter(40.0, 0.0)), at = tracer::utd_transition(40.0);
+  EXPECT_LT(std::abs(below - at), 1e-13);
   // Limits: F(0) = 0, F -> 1.
   EXPECT_EQ(std::abs(tracer::utd_transition(0.0)), 0.0);
   for (double X : {1e3, 1e4, 1e6}) {

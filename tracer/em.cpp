@@ -407,6 +407,27 @@ std::pair<double, double> fresnel_cs(double x) {
 
 cdouble utd_transition(double x) {
   if (!(x > 0)) return 0.0;
+  // Far from the shadow and reflection boundaries (most terms of most
+  // paths: kL is hundreds to thousands) the asymptotic series
+  // F(x) ~ sum_m (2m - 1)!! (j / 2x)^m: its terms shrink while 2m + 1 < 2x,
+  // and from x = 40 on they fall below 1e-16 before turning (the smallest
+  // is about e^-x), so the sum is as exact as the continued fraction
+  // below, at a tenth of its cost (no complex division or exponential).
+  if (x >= 40) {
+    const double h = 0.5 / x;
+    double re = 1, im = 0, t = 1;  // t = (2m - 1)!! h^m
+    for (int m = 1; m < 64; ++m) {
+      t *= (2 * m - 1) * h;
+      switch (m & 3) {  // j^m
+        case 1: im += t; break;
+        case 2: re -= t; break;
+        case 3: im -= t; break;
+        default: re += t; break;
+      }
+      if (t < 1e-17) break;
+    }
+    return {re, im};
+  }
   const double u = std::sqrt(x);
   // int_u^inf e^{-j t^2} dt = sqrt(pi/2) G(u sqrt(2/pi)).
   const cdouble tail = std::sqrt(kPi / 2) * fresnel_tail(u * std::sqrt(2 / kPi));
