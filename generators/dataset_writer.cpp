@@ -60,6 +60,7 @@ struct DatasetWriter::Impl {
                        header.provenance, header.seed);
     out.attr("", "carrier_hz", header.carrier_hz);
     out.attr("", "bandwidth_hz", header.bandwidth_hz);
+    if (!header.shard.empty()) out.attr("", "shard", header.shard);
 
     f_time = column("frames", "time_s", Dtype::f64);
     f_node_offset = column("frames", "node_offset", Dtype::u64);
@@ -255,8 +256,6 @@ struct DatasetWriter::Impl {
 
     write_node_and_object_tables(out, nodes, objects);
 
-    // Last, with the counts: a sweep's shard record is complete only once its frames are.
-    if (!header.shard.empty()) out.attr("", "shard", header.shard);
     out.attr("", "frame_count", std::uint64_t{frame_count});
     out.attr("", "node_count", std::uint64_t{nodes.size()});
     out.attr("", "link_count", std::uint64_t{link_count});
@@ -295,11 +294,6 @@ void DatasetWriter::append(const FrameRecord& frame) {
 void DatasetWriter::finish(const std::vector<NodeInfo>& nodes, const std::vector<std::string>& objects) {
   QuietHdf5 quiet;
   impl_->finish(nodes, objects);
-}
-
-void DatasetWriter::set_shard(const std::string& shard) {
-  if (impl_->finished) throw std::runtime_error(impl_->file + ": set_shard() after finish()");
-  impl_->header.shard = shard;
 }
 
 std::uint64_t DatasetWriter::frames() const { return impl_->frame_count; }

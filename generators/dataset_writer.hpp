@@ -58,10 +58,6 @@ class DatasetWriter {
   // std::runtime_error on HDF5 failures or after finish().
   void append(const FrameRecord& frame);
 
-  // The header's `shard` record, when it is known only after the frames (it is
-  // written by finish()).
-  void set_shard(const std::string& shard);
-
   // Writes the node and object tables, the count attributes and complete = 1, and
   // closes the file. Throws std::invalid_argument when a node state or link names a
   // node >= nodes.size() or an interaction names an object >= objects.size().

@@ -14,7 +14,6 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/frame_block.hpp"
-#include "pipeline/block_assembler.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"
@@ -34,6 +33,16 @@ namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
+
+namespace {
+
+std::string block_name(std::uint64_t b) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "block_%06llu", static_cast<unsigned long long>(b));
+  return buf;
+}
+
+}  // namespace
 
 json SweepConfig::to_json() const { return sweep_table().write(*this); }
 
@@ -209,25 +218,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   FcdReader reader(args.fcd, sweep_fcd_filter(cfg));
   SweepSelection selection(cfg, bounds, args.fcd);
 
-  // The dataset's header; its blocks are appended as they are committed.
-  generators::DatasetHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
-  header.seed = 0;
-  header.carrier_hz = settings.radio.frequency_hz;
-  header.bandwidth_hz = settings.radio.bandwidth_hz;
-  if (options.cfr) {
-    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
-    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
-  }
-  const fs::path tmp = out.string() + ".tmp";
-  BlockAssembler assembler(tmp, header, parts,
-                           {{"frames", 0}, {"links", 0}, {"traced_links", 0}, {"vehicle_updates", 0},
-                            {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}});
-
   generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
   std::optional<generators::FrameBlockWriter> block;  // streamed to disk: one frame in memory
   std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0;
@@ -252,7 +242,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
     write_file_atomic(parts / (block_name(block_index) + ".json"), st.dump() + "\n");
     block->commit();
     block.reset();
-    assembler.add(block_index);
     // Test hook: die like `kill -9` right after a given number of commits.
     static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
     static int committed = 0;
@@ -272,7 +261,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
           generators::verify_frame_block(parts / (block_name(block_index) + ".bin"));
           skipping_block = true;
           ++blocks_resumed;
-          assembler.add(block_index);
         } catch (const meshkit::InputError& e) {
           spdlog::warn("{}; tracing that block again", e.what());
         }
@@ -349,10 +337,41 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
                    args.shard->name(), shard.blocks_total, shard.block_frames);
   }
 
-  // The dataset (or the shard): the last blocks, the tables and the shard record.
-  std::vector<std::string> ids;
-  for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
-  const json totals = assembler.finish(node_table, sweep.object_names(ids), args.shard ? shard.to_json().dump() : "");
+  // Assemble the dataset (or the shard) from the committed blocks.
+  generators::DatasetHeader header;
+  header.raysweep_version = kVersion;
+  header.git_hash = kGitHash;
+  header.config = config;
+  header.inputs = prov["inputs"];
+  header.provenance = prov;
+  header.seed = 0;
+  if (args.shard) header.shard = shard.to_json().dump();
+  header.carrier_hz = settings.radio.frequency_hz;
+  header.bandwidth_hz = settings.radio.bandwidth_hz;
+  if (options.cfr) {
+    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
+    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
+  }
+  const fs::path tmp = out.string() + ".tmp";
+  json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
+                 {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
+  {
+    generators::DatasetWriter writer(tmp, header);
+    for (std::uint64_t b = 0; b <= block_index; ++b) {
+      if (!mine(b)) continue;
+      generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
+      for (generators::FrameRecord f; blocks.next(f);) writer.append(f);
+      std::ifstream in(parts / (block_name(b) + ".json"));
+      const json st = json::parse(in);
+      for (auto& [k, v] : totals.items()) {
+        if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
+        else v = v.get<std::uint64_t>() + st.at(k).get<std::uint64_t>();
+      }
+    }
+    std::vector<std::string> ids;
+    for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
+    writer.finish(node_table, sweep.object_names(ids));
+  }
   fs::rename(tmp, out);
   fs::remove_all(parts);
   // A merge record next to the file describes an earlier, merged version of it.
