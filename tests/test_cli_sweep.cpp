@@ -146,6 +146,7 @@ TEST(CliSweep, BadInputNamesFileAndLineAndWritesNothing) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("outside.xml: line 5 vehicle far"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "outside.xml.h5"));
+  EXPECT_FALSE(fs::exists(dir / "outside.xml.h5.tmp"));
   // Time going backwards.
   r = run_raysweep(fcd("backwards.xml", "<timestep time=\"1.00\">\n" + v1 + "</timestep>\n<timestep time=\"0.50\">\n" +
                                             v1 + "</timestep>\n"));
@@ -153,6 +154,7 @@ TEST(CliSweep, BadInputNamesFileAndLineAndWritesNothing) {
   EXPECT_NE(r.output.find("backwards.xml"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("line 6"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "backwards.xml.h5"));
+  EXPECT_FALSE(fs::exists(dir / "backwards.xml.h5.tmp"));
   // A duplicate id in one frame.
   r = run_raysweep(fcd("dup.xml", "<timestep time=\"0.00\">\n" + v1 + v1 + "</timestep>\n"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
@@ -177,6 +179,7 @@ TEST(CliSweep, BadInputNamesFileAndLineAndWritesNothing) {
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("cut.xml.gz"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(dir / "cut.h5"));
+  EXPECT_FALSE(fs::exists(dir / "cut.h5.tmp"));
   // No SUMO: a message that says how to install it.
   r = run_command("SUMO_BINARY=/nonexistent/sumo " + std::string(RAYSWEEP_BINARY) + " traffic --net " +
                   (demo() / "kirchberg.net.xml").string() + " --trips-seed 1 --out " + (dir / "t").string());
