@@ -319,11 +319,12 @@ void ColumnFile::write_whole_chunks(bool full_buffers_only) {
     std::size_t chunk;  // index among the column's buffered whole chunks
     std::vector<unsigned char> z;
   };
+  if (!kLittleEndian) return;  // the library's path converts
   std::vector<Job> jobs;
   for (auto& c : columns_) {
     // Strings are pointers in memory; a column that ever wrote a partial
     // chunk is no longer chunk-aligned. Both take the library's path.
-    if (c->dtype == Dtype::str || c->rows_written % c->chunk_rows != 0 || !kLittleEndian) continue;
+    if (c->dtype == Dtype::str || c->rows_written % c->chunk_rows != 0) continue;
     if (full_buffers_only && c->buf.size() < kFlushBytes) continue;
     const hsize_t chunks = c->buffered_rows() / c->chunk_rows;
     for (hsize_t k = 0; k < chunks; ++k) jobs.push_back({c.get(), static_cast<std::size_t>(k), {}});
