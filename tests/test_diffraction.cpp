@@ -366,7 +366,61 @@ TEST(Diffraction, EdgesOfABoxAScreenAndTheGround) {
     }
   }
   EXPECT_EQ(box_edges, 8);    // 4 vertical + 4 roof edges; the 4 floor edges are out
-  EXPECT_EQ(screen_edges, 4);  // free borders of a single quad
+  // Free borders of a single quad, but not the one standing on the ground
+  // (a concave junction with it, not a half plane).
+  EXPECT_EQ(screen_edges, 3);
+  for (const auto& e : scene.edges())
+    if (e.object == screen) EXPECT_GT(std::max(e.a[2], e.b[2]), 1.0);
+}
+
+// Two buildings that touch (row houses; OSM footprints sharing a wall):
+// A = [-10, 0] x [-10, 0] x [0, 6], B = [0, 10] x [-10, 0] x [0, 9], fronts
+// flush at y = 0. Each mesh still carries its corners at x = 0 as wedges,
+// but there the block's front is flat and A's roof meets B's wall (concave):
+// only B's corners above A's roof (z in [6, 9]) diffract. Hand count: A's
+// two outer vertical edges and three roof edges, B's two outer vertical
+// edges, four roof edges and the two exposed pieces.
+TEST(Diffraction, TouchingBuildingsKeepOnlyTheirExposedEdges) {
+  meshkit::Scene s;
+  add_box_object(s, {-10, -10, 0}, {0, 0, 6}, "concrete", "A");
+  add_box_object(s, {0, -10, 0}, {10, 0, 9}, "brick", "B");
+  add_ground(s, 200);
+  tracer::TraceScene scene(s);
+  const auto names = scene.object_names();
+  int a_edges = 0, b_edges = 0, pieces = 0;
+  for (const auto& e : scene.edges()) {
+    const std::string& name = names.at(e.object);
+    a_edges += name == "A";
+    b_edges += name == "B";
+    const bool on_x0 = std::fabs(e.a[0]) < 1e-9 && std::fabs(e.b[0]) < 1e-9;
+    EXPECT_FALSE(name == "A" && on_x0) << "A's edge at x = 0 is inside the block";
+    if (name == "B" && on_x0 && std::fabs(e.e[2]) > 0.99) {  // B's vertical corners on the shared wall
+      ++pieces;
+      EXPECT_NEAR(std::min(e.a[2], e.b[2]), 6.0, 1e-3);  // cut where A's roof meets B's wall
+      EXPECT_NEAR(std::max(e.a[2], e.b[2]), 9.0, 1e-9);
+    }
+  }
+  EXPECT_EQ(a_edges, 5);
+  EXPECT_EQ(b_edges, 8);
+  EXPECT_EQ(pieces, 2);
+
+  // Along the flat front no diffraction point lies on the buried corner,
+  // and the exposed piece still diffracts (tx, rx above A's roof).
+  auto cfg = diffraction_config();
+  cfg.diffraction_reflection = false;
+  const auto low = tracer::trace_snapshot(scene, {node("tx", {-30, 12, 1.5}), node("rx", {25, 20, 2})}, cfg, radio());
+  for (const auto& path : low.pairs.at(0).paths)
+    for (const auto& in : path.interactions)
+      if (in.type == tracer::InteractionType::diffraction)
+        EXPECT_FALSE(std::hypot(in.point[0], in.point[1]) < 1e-6 && in.point[2] < 6 - 1e-3)
+            << "diffraction at the flush corner, z = " << in.point[2];
+  const auto high = tracer::trace_snapshot(scene, {node("tx", {-30, 12, 8}), node("rx", {-5, -30, 8.5})}, cfg, radio());
+  bool corner = false;
+  for (const auto& path : high.pairs.at(0).paths)
+    for (const auto& in : path.interactions)
+      corner |= in.type == tracer::InteractionType::diffraction && std::hypot(in.point[0], in.point[1]) < 1e-6 &&
+                in.point[2] > 6;
+  EXPECT_TRUE(corner) << "B's corner above A's roof diffracts";
 }
 
 // ---------------------------------------------------------------------------

@@ -453,6 +453,79 @@ std::vector<Edge> extract_edges(const TraceScene::Shape& s, const std::vector<st
   return edges;
 }
 
+// Whether x lies inside a static solid: the nearest face straight up is
+// seen from behind (a building's roof from inside). Not down or sideways:
+// floors lie on the ground plane and touching buildings' walls coincide, so
+// the nearest face there is either of two. A roofless mesh reads as outside.
+bool inside_solid(const TraceScene& scene, const Vec3& x) {
+  const Vec3 up{0, 0, 1};
+  Hit hit;
+  return scene.closest_hit(x, up, 0, std::numeric_limits<double>::infinity(), hit) &&
+         dot(scene.plane(hit.face).normal, up) > 0;
+}
+
+// A point of an edge is buried when another solid fills part of the
+// exterior wedge next to it: two buildings that touch (row houses, OSM
+// footprints sharing a wall) keep each other's corners inside the block,
+// where the meshes still carry them as wedges (a corner where the fronts are
+// flush, a lower roof's edge along its taller neighbour's wall). Probes
+// across the exterior wedge, kProbeReach from the edge.
+constexpr int kProbes = 6;
+constexpr double kProbeReach = 0.05;
+bool buried(const TraceScene& scene, const Edge& e, const Vec3& p) {
+  for (int k = 0; k < kProbes; ++k) {
+    const double phi = (k + 0.5) / kProbes * e.n * kPi;
+    if (inside_solid(scene, p + kProbeReach * (std::cos(phi) * e.t0 + std::sin(phi) * e.n0))) return true;
+  }
+  return false;
+}
+
+// The parts of `edges` that are not buried: each edge is probed every
+// kProbeSpacing (at least twice) and cut where the state changes, the cut
+// found by bisection to kCutTolerance. Order kept (deterministic).
+constexpr double kProbeSpacing = 0.5;
+constexpr double kCutTolerance = 1e-3;
+std::vector<Edge> exposed_parts(const TraceScene& scene, const std::vector<Edge>& edges) {
+  std::vector<std::vector<Edge>> parts(edges.size());
+  tbb::parallel_for(std::size_t{0}, edges.size(), [&](std::size_t i) {
+    const Edge& e = edges[i];
+    const double len = norm(e.b - e.a);
+    const int n = std::clamp(static_cast<int>(std::ceil(len / kProbeSpacing)), 2, 4096);
+    auto at = [&](double z) { return e.a + z * e.e; };
+    auto z_of = [&](int k) { return (k + 0.5) * len / n; };
+    std::vector<char> hidden(n);
+    bool any = false;
+    for (int k = 0; k < n; ++k) any |= (hidden[k] = buried(scene, e, at(z_of(k))));
+    if (!any) {
+      parts[i].push_back(e);
+      return;
+    }
+    auto emit = [&](double z0, double z1) {
+      if (z1 - z0 < kCutTolerance) return;
+      Edge piece = e;
+      piece.a = at(z0);
+      piece.b = at(z1);
+      parts[i].push_back(piece);
+    };
+    double start = 0;
+    for (int k = 1; k < n; ++k) {
+      if (hidden[k] == hidden[k - 1]) continue;
+      double lo = z_of(k - 1), hi = z_of(k);  // lo has hidden[k - 1]'s state
+      while (hi - lo > kCutTolerance) {
+        const double mid = 0.5 * (lo + hi);
+        (buried(scene, e, at(mid)) == static_cast<bool>(hidden[k - 1]) ? lo : hi) = mid;
+      }
+      const double cut = 0.5 * (lo + hi);
+      if (hidden[k - 1]) start = cut;
+      else emit(start, cut);
+    }
+    if (!hidden[n - 1]) emit(start, len);
+  });
+  std::vector<Edge> out;
+  for (auto& p : parts) out.insert(out.end(), p.begin(), p.end());
+  return out;
+}
+
 }  // namespace
 
 TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_unique<Impl>()) {
@@ -507,6 +580,7 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   if (!d.world.triangles.empty()) attach_triangles(d.device, d.world, d.origin, d.top);
   rtcCommitScene(d.top);
   check_device(d.device, "top-level scene");
+  d.edges = exposed_parts(*this, d.edges);
 }
 
 TraceScene::~TraceScene() {
