@@ -335,6 +335,11 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     s = variant(base.vehicle_diffraction ? "-vehicle knife edges" : "+vehicle knife edges");
     s.tracer.vehicle_diffraction = !base.vehicle_diffraction;
     grid.push_back(s);
+    if (base.vehicle_diffraction) {
+      s = variant(base.vehicle_diffraction_reflected ? "-reflected knife edges" : "+reflected knife edges");
+      s.tracer.vehicle_diffraction_reflected = !base.vehicle_diffraction_reflected;
+      grid.push_back(s);
+    }
     s = variant(base.refraction ? "-refraction" : "+refraction");
     s.tracer.refraction = !base.refraction;
     grid.push_back(s);

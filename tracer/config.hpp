@@ -127,6 +127,11 @@ struct TracerConfig {
   // ITU-R P.526's knife-edge loss (Deygout for several: tracer/fresnel.hpp);
   // a direct ray only vehicles block survives, attenuated.
   bool vehicle_diffraction = true;
+  // With vehicle_diffraction, the same on every specular path: each leg's
+  // vehicles against the unfolded path's first zone (Deygout along the
+  // path); a path only vehicles block is traced through them, attenuated.
+  // Off by default: +30-70 % per 60-vehicle snapshot (docs/tracer.md).
+  bool vehicle_diffraction_reflected = false;
   // A pair's paths weaker than its strongest by more than this (dB) are
   // dropped and counted in PairResult::dropped_threshold. <= 0: keep all.
   double path_threshold_db = 60;

@@ -112,6 +112,7 @@ struct Clearance {
   Vec3 edge{0, 0, 0};
 };
 
+
 // Clearance of one obstacle (its triangles) from the line a + t u, t in
 // (0, d), over the first Fresnel radius there. `near`: its faces near the
 // zone with a lower bound of their clearance, ascending; faces are skipped
@@ -120,11 +121,9 @@ struct Clearance {
 // bound <= 0 and are never skipped.
 Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const std::vector<std::uint32_t>& face_begin,
                              const std::vector<FresnelObstacles::NearFace>& near, const Vec3& a, const Vec3& u,
-                             const Vec3& e1, const Vec3& e2, double d, double lambda, double bound) {
-  auto r1 = [&](double t) {
-    t = std::clamp(t, 1e-3 * d, d - 1e-3 * d);
-    return std::sqrt(lambda * t * (d - t) / d);
-  };
+                             const Vec3& e1, const Vec3& e2, double d, double lambda, double bound,
+                             const FresnelZone& zone, bool upward_exits = false) {
+  auto r1 = [&](double t) { return zone.r1(t, lambda); };
   Clearance best;
   double blocked_t = -1;
   // Projection onto the plane across the line; false: beyond an end.
@@ -151,7 +150,8 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
       if (h <= 0) {
         // Of several crossings, the one nearest mid-path (where r1 is
         // largest): independent of the order triangles are visited in.
-        if (tc > 0 && tc < d && (blocked_t < 0 || std::fabs(tc - 0.5 * d) < std::fabs(blocked_t - 0.5 * d)))
+        const double mid = zone.widest(-1e300, 1e300);
+        if (tc > 0 && tc < d && (blocked_t < 0 || std::fabs(tc - mid) < std::fabs(blocked_t - mid)))
           blocked_t = tc;
         continue;
       }
@@ -168,6 +168,9 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   // over 32 directions. Exact pruning: triangles in decreasing order of
   // their farthest vertex; a direction stops once no further triangle can
   // push its exit out, or once it cannot beat the best direction.
+  // `upward_exits`: not downwards (a leg near a ground reflection runs at
+  // the vehicle's base, where an exit below it would pass through the
+  // ground; the direct line at antenna height never exits there anyway).
   struct Piece {
     double reach;  // farthest vertex from the line
     P2 centre;     // bounding circle (cheap test before exit_along)
@@ -193,6 +196,7 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   for (int k = 0; k < 32; ++k) {
     const double phi = 2 * kPi * k / 32;
     const P2 dir{std::cos(phi), std::sin(phi)};
+    if (upward_exits && dir.x * e1[2] + dir.y * e2[2] < -1e-9) continue;
     double out = 0;
     for (const Piece& pc : outline) {
       if (pc.reach <= out || out >= depth) break;
@@ -214,12 +218,14 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
 // The reach of the first zone around the line a + t u, t in [0, d], near
 // a sphere: the zone radius at the sphere's axial point nearest mid-path
 // (r1 is largest there), or -1 when the sphere cannot come within it.
-double zone_reach(const TraceScene::Sphere& s, const Vec3& a, const Vec3& u, double d, double lambda) {
+double zone_reach(const TraceScene::Sphere& s, const Vec3& a, const Vec3& u, double d, double lambda,
+                  const FresnelZone& zone) {
   const Vec3 w = s.centre - a;
   const double t = dot(w, u);
   if (t < -s.radius || t > d + s.radius) return -1.0;
-  const double t_mid = std::clamp(0.5 * d, std::clamp(t - s.radius, 0.0, d), std::clamp(t + s.radius, 0.0, d));
-  const double reach = std::sqrt(lambda * t_mid * (d - t_mid) / d);
+  const double t_mid = zone.widest(std::clamp(t - s.radius, 0.0, d), std::clamp(t + s.radius, 0.0, d));
+  const double sm = zone.before + t_mid;
+  const double reach = std::sqrt(lambda * sm * (zone.total - sm) / zone.total);
   return dot(w, w) - t * t <= (s.radius + reach) * (s.radius + reach) ? reach : -1.0;
 }
 
@@ -280,9 +286,9 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
     const Obstacle& o = obstacles_[k];
     if (o.vehicle && (static_cast<int>(k) == skip_a || static_cast<int>(k) == skip_b)) continue;
     double& worst = o.vehicle ? f.vehicle_clearance : f.static_clearance;
-    if (!near_faces(o, a, u, d, lambda, near)) continue;
+    if (!near_faces(o, a, u, d, lambda, FresnelZone{0, d}, near)) continue;
     worst = std::min(worst, obstacle_clearance(o.triangles, o.face_begin, near, a, u, e1, e2, d, lambda,
-                                               std::min(worst, 1.0)).clearance);
+                                               std::min(worst, 1.0), FresnelZone{0, d}).clearance);
   }
   f.vehicle_clearance = std::min(f.vehicle_clearance, 1.0);
   f.static_clearance = std::min(f.static_clearance, 1.0);
@@ -291,11 +297,12 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
 }
 
 bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
-                                  std::vector<NearFace>& near) const {
+                                  const FresnelZone& zone, std::vector<NearFace>& near) const {
   near.clear();
-  const double reach = zone_reach(o.sphere, a, u, d, lambda);  // bounds r1 over every face of the obstacle
+  const double reach = zone_reach(o.sphere, a, u, d, lambda, zone);  // bounds r1 over every face of the obstacle
   if (reach < 0) return false;
-  const double t_lo = 1e-3 * d, t_hi = d - 1e-3 * d;  // obstacle_clearance's r1 clamp
+  // obstacle_clearance's r1 clamp, in line coordinates
+  const double t_lo = 1e-3 * zone.total - zone.before, t_hi = zone.total - 1e-3 * zone.total - zone.before;
   for (std::size_t face = 0; face + 1 < o.face_begin.size(); ++face) {
     const auto& fs = o.face_spheres[face];
     const Vec3 w = fs.centre - a;
@@ -308,8 +315,8 @@ bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& 
     const double gap = std::sqrt(std::max(0.0, h2)) - fs.radius;
     double bound = -1e300;
     if (gap > 0) {
-      const double tm = std::clamp(0.5 * d, std::clamp(t - fs.radius, t_lo, t_hi), std::clamp(t + fs.radius, t_lo, t_hi));
-      bound = gap / std::sqrt(lambda * tm * (d - tm) / d);
+      const double tm = zone.widest(std::clamp(t - fs.radius, t_lo, t_hi), std::clamp(t + fs.radius, t_lo, t_hi));
+      bound = gap / zone.r1(tm, lambda);
     }
     near.push_back({bound, static_cast<std::uint32_t>(face)});
   }
@@ -344,10 +351,11 @@ KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, d
       const Obstacle& o = obstacles_[k];
       const int ki = static_cast<int>(k);
       if (!o.vehicle || ki == skip_a || ki == skip_b || ki == exclude) continue;
-      if (!near_faces(o, p, u, d, lambda, near)) continue;
+      if (!near_faces(o, p, u, d, lambda, FresnelZone{0, d}, near)) continue;
       // Only a vehicle clearer than the best so far can be skipped.
       const double bound = best.k >= 0 ? -best.v / std::sqrt(2.0) : 1e300;
-      const Clearance c = obstacle_clearance(o.triangles, o.face_begin, near, p, u, e1, e2, d, lambda, bound);
+      const Clearance c =
+          obstacle_clearance(o.triangles, o.face_begin, near, p, u, e1, e2, d, lambda, bound, FresnelZone{0, d});
       const double v = -std::sqrt(2.0) * c.clearance;
       if (v > best.v) best = Edge{v, ki, c.edge};
     }
@@ -364,6 +372,65 @@ KnifeEdges FresnelObstacles::vehicle_knife_edges(const Vec3& a, const Vec3& b, d
   // each over the path from its end to the main edge.
   for (const Edge& s : {main_edge(a, m.point, m.k), main_edge(m.point, b, m.k)}) {
     const double l = s.k >= 0 ? knife_edge_loss_db(s.v) : 0.0;
+    if (l > 0) {
+      out.loss_db += l;
+      ++out.edges;
+    }
+  }
+  return out;
+}
+
+KnifeEdges FresnelObstacles::path_knife_edges(const std::vector<Vec3>& points, const std::vector<int>& host,
+                                              double lambda, int skip_a, int skip_b) const {
+  KnifeEdges out;
+  if (points.size() < 2 || host.size() != points.size()) return out;
+  const std::size_t legs = points.size() - 1;
+  std::vector<double> start(legs + 1, 0.0);  // path coordinate of each point
+  for (std::size_t m = 0; m < legs; ++m) start[m + 1] = start[m] + norm(points[m + 1] - points[m]);
+  const double length = start[legs];
+  struct Edge {
+    double v = -1e300;
+    int k = -1;
+    double s = 0;  // path coordinate of the edge's foot on the path
+  };
+  std::vector<NearFace> near;
+  // The vehicle with the largest v over the part [sa, sb] of the path.
+  auto main_edge = [&](double sa, double sb, int exclude) {
+    Edge best;
+    const double total = sb - sa;
+    if (!(total > 0)) return best;
+    for (std::size_t m = 0; m < legs; ++m) {
+      const double l0 = std::max(sa, start[m]), l1 = std::min(sb, start[m + 1]);
+      const double leg = start[m + 1] - start[m];
+      if (!(l1 > l0) || !(leg > 0)) continue;
+      const Vec3 u = (1.0 / leg) * (points[m + 1] - points[m]);
+      const Vec3 p = points[m] + (l0 - start[m]) * u;
+      const double d = l1 - l0;
+      const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
+      const FresnelZone zone{l0 - sa, total};
+      for (std::size_t k = 0; k < obstacles_.size(); ++k) {
+        const Obstacle& o = obstacles_[k];
+        const int ki = static_cast<int>(k);
+        if (!o.vehicle || ki == skip_a || ki == skip_b || ki == exclude || ki == host[m] || ki == host[m + 1])
+          continue;
+        if (!near_faces(o, p, u, d, lambda, zone, near)) continue;
+        const double bound = best.k >= 0 ? -best.v / std::sqrt(2.0) : 1e300;
+        const Clearance c =
+            obstacle_clearance(o.triangles, o.face_begin, near, p, u, e1, e2, d, lambda, bound, zone, true);
+        const double v = -std::sqrt(2.0) * c.clearance;
+        if (v > best.v) best = Edge{v, ki, l0 + std::clamp(dot(c.edge - p, u), 0.0, d)};
+      }
+    }
+    return best;
+  };
+  const Edge m = main_edge(0, length, -1);
+  if (m.k < 0 || m.v <= kKnifeEdgeOnset) return out;
+  out.v_main = m.v;
+  out.main_vehicle = m.k;
+  out.loss_db = knife_edge_loss_db(m.v);
+  out.edges = 1;
+  for (const Edge& e : {main_edge(0, m.s, m.k), main_edge(m.s, length, m.k)}) {
+    const double l = e.k >= 0 ? knife_edge_loss_db(e.v) : 0.0;
     if (l > 0) {
       out.loss_db += l;
       ++out.edges;

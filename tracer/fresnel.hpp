@@ -11,7 +11,9 @@
 // r1. The knife-edge parameter is v = -sqrt(2) h / r1.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -45,6 +47,22 @@ struct FresnelObstruction {
   double static_clearance = 1;   // the worst static object's (ground excluded)
 };
 
+// Where a line of length d sits in the path whose first zone counts: it
+// starts `before` along a path of length `total` (a leg of a reflected
+// path, unfolded; the direct line is {0, d}). r1 at t along the line is
+// sqrt(lambda s (total - s) / total), s = before + t, clamped 1e-3 total
+// from the path's ends.
+struct FresnelZone {
+  double before = 0, total = 0;
+  double r1(double t, double lambda) const {
+    t = std::clamp(before + t, 1e-3 * total, total - 1e-3 * total);
+    return std::sqrt(lambda * t * (total - t) / total);
+  }
+  // The point of [lo, hi] (line coordinates) nearest the path's middle,
+  // where r1 is largest.
+  double widest(double lo, double hi) const { return std::clamp(0.5 * total - before, lo, hi); }
+};
+
 // The obstacles of one frame in world coordinates, built once per snapshot:
 // every vehicle (index v = vehicle) and every static object but the ground
 // (large horizontal faces: the ground's reflection is a path, not an
@@ -61,6 +79,15 @@ class FresnelObstacles {
   KnifeEdges vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1,
                                  int skip_b = -1) const;
 
+  // The same along a path of several legs, points[0] the source to
+  // points.back() the receiver (the reflection points between): each leg's
+  // vehicles against the whole path's first zone (r1 from the distances
+  // along the path: the zone of the path unfolded through its mirrors), and
+  // Deygout's sub-paths taken along the path. host[m] is the vehicle that
+  // carries points[m] (a reflection on it, -1: none), left out on the two
+  // legs that touch it; skip_a / skip_b on every leg.
+  KnifeEdges path_knife_edges(const std::vector<Vec3>& points, const std::vector<int>& host, double lambda,
+                              int skip_a = -1, int skip_b = -1) const;
   // A face of an obstacle near a line's first zone, with a lower bound of
   // its clearance (negative when the line may cross it).
   struct NearFace {
@@ -78,7 +105,7 @@ class FresnelObstacles {
   };
   // The faces of o whose spheres come within the first zone of the line
   // a + t u, t in [0, d], by ascending bound; false when none.
-  bool near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
+  bool near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda, const FresnelZone& zone,
                   std::vector<NearFace>& near) const;
   std::vector<Obstacle> obstacles_;  // vehicles first (index = vehicle), then static objects
 };

@@ -210,15 +210,29 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     // stop at the first opaque face, or once the slab cap is exceeded,
     // instead of listing every wall to the end of a long segment.
     const int remaining = config.refraction ? std::max(0, config.max_transmissions - transmissions) : 0;
-    const std::size_t first_hits = through_vehicles ? 4096 : static_cast<std::size_t>(remaining) + 3;
+    // Through vehicles: a vehicle on the way is passed (its knife-edge loss
+    // is the caller's), but not one that carries this leg's reflections
+    // (a leg cannot reach its face through the body the face belongs to).
+    const std::uint32_t host_a = m > 0 ? faces[m - 1].instance : 0, host_b = ends_on_face ? faces[m].instance : 0;
+    auto passed = [&](const FaceRef& f) {
+      return through_vehicles && scene.is_vehicle(f) && f.instance != host_a && f.instance != host_b;
+    };
+    const std::size_t first_hits = static_cast<std::size_t>(remaining) + (through_vehicles ? 8 : 3);
     if (!scene.all_hits(a, dir, t0, tfar, hits, first_hits, skip)) {
       int before_end = 0;
-      for (const auto& h : hits) before_end += h.t < len - end_tol;
+      bool opaque = false;
+      for (const auto& h : hits)
+        if (h.t < len - end_tol && !passed(h.face)) {
+          ++before_end;
+          opaque = opaque || !config.refraction || em.opaque(scene.material(h.face));
+        }
       if (rays) *rays += hits.size() + 1;
       if (before_end > remaining) {
         if (over_cap && config.refraction) *over_cap = true;
         return std::nullopt;
       }
+      // Blocked on the way (the loop below would say so after listing all).
+      if (through_vehicles && opaque) return std::nullopt;
       // Several faces meet at the end point: list them all.
       if (!scene.all_hits(a, dir, t0, tfar, hits, 4096, skip)) return std::nullopt;
     }
@@ -230,11 +244,20 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
         break;
       }
       if (h.t >= len - end_tol) continue;  // at the end point, not on the way
-      if (through_vehicles && scene.is_vehicle(h.face)) continue;
+      if (passed(h.face)) continue;
       if (!config.refraction || em.opaque(scene.material(h.face))) return std::nullopt;
       events.push_back(Event{false, h.face, a + h.t * dir, dir});
       ++transmissions;
     }
+    // A passed vehicle's face coincident with the reflection point (a car
+    // standing on the ground over it) is listed as that crossing instead
+    // of the face: the point must then lie on the face itself.
+    if (!reached && ends_on_face)
+      for (const auto& h : hits)
+        if (std::fabs(h.t - len) <= end_tol && passed(h.face)) {
+          reached = scene.face_contains(faces[m], b, end_tol);
+          break;
+        }
     if (!reached) return std::nullopt;
     if (ends_on_face) events.push_back(Event{true, faces[m], b, dir});
   }
@@ -1339,6 +1362,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
 
   const double lambda = em.wavelength();
   const FresnelObstacles obstacles(scene);
+  const bool knife_reflected = cfg.vehicle_diffraction && cfg.vehicle_diffraction_reflected;
   snap.pairs.resize(pairs.size());
   tbb::enumerable_thread_specific<std::uint64_t> pair_rays(0);
   tbb::enumerable_thread_specific<SnapshotStats::Timing> pair_time;
@@ -1371,10 +1395,42 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     }
     auto add = [&](const std::vector<FaceRef>& faces) {
       bool over = false;
-      if (auto path = compute_path(scene, em, cfg, nodes[i], nodes[j], faces, &over, &rays))
-        res.paths.push_back(std::move(*path));
-      else if (over)
-        ++res.dropped_transmission_cap;
+      if (!knife_reflected || faces.empty()) {
+        if (auto path = compute_path(scene, em, cfg, nodes[i], nodes[j], faces, &over, &rays))
+          res.paths.push_back(std::move(*path));
+        else if (over)
+          ++res.dropped_transmission_cap;
+        return;
+      }
+      // Vehicles as knife edges on a reflected path too: traced through the
+      // vehicles on its way, attenuated by the legs' multiple knife edge in
+      // the unfolded path's first zone (continuous as a car enters a leg).
+      auto path = exact_path(scene, em, cfg, nodes[i], nodes[j], faces, &over, &rays, true);
+      if (!path) {
+        if (over) ++res.dropped_transmission_cap;
+        return;
+      }
+      std::vector<Vec3> points{nodes[i].position};
+      std::vector<int> host{-1};
+      std::size_t q = 0;
+      for (const auto& in : path->interactions)
+        if (in.type == InteractionType::specular) {
+          points.push_back(in.point);
+          host.push_back(faces[q].instance == 0 ? -1 : static_cast<int>(faces[q].instance) - 1);
+          ++q;
+        }
+      points.push_back(nodes[j].position);
+      host.push_back(-1);
+      const auto ke = obstacles.path_knife_edges(points, host, lambda, nodes[i].vehicle, nodes[j].vehicle);
+      if (ke.loss_db > 0) {
+        path->a *= std::pow(10.0, -ke.loss_db / 20);
+        // A leg that crosses a vehicle may also pass through its windows:
+        // the stronger of the two, as for the direct path.
+        if (ke.v_main > 0)
+          if (auto glass = exact_path(scene, em, cfg, nodes[i], nodes[j], faces, nullptr, &rays, false))
+            if (std::norm(glass->a) > std::norm(path->a)) path = std::move(glass);
+      }
+      res.paths.push_back(std::move(*path));
     };
     if (cfg.los) {
       add({});
