@@ -212,10 +212,16 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     const int remaining = config.refraction ? std::max(0, config.max_transmissions - transmissions) : 0;
     // Through vehicles: a vehicle on the way is passed (its knife-edge loss
     // is the caller's), but not one that carries this leg's reflections
-    // (a leg cannot reach its face through the body the face belongs to).
+    // (a leg cannot reach its face through the body the face belongs to),
+    // nor, on a reflected path, the antennas' own vehicles (the knife edges
+    // leave them out: they carry the antennas, so a ray through them would
+    // cost nothing; the direct path keeps its rule, docs/tracer.md).
     const std::uint32_t host_a = m > 0 ? faces[m - 1].instance : 0, host_b = ends_on_face ? faces[m].instance : 0;
+    auto own = [k](const Node& n) { return k > 0 && n.vehicle >= 0 ? static_cast<std::uint32_t>(n.vehicle) + 1 : 0u; };
+    const std::uint32_t own_a = own(from), own_b = own(to);
     auto passed = [&](const FaceRef& f) {
-      return through_vehicles && scene.is_vehicle(f) && f.instance != host_a && f.instance != host_b;
+      return through_vehicles && scene.is_vehicle(f) && f.instance != host_a && f.instance != host_b &&
+             f.instance != own_a && f.instance != own_b;
     };
     const std::size_t first_hits = static_cast<std::size_t>(remaining) + (through_vehicles ? 8 : 3);
     if (!scene.all_hits(a, dir, t0, tfar, hits, first_hits, skip)) {
