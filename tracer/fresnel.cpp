@@ -112,7 +112,6 @@ struct Clearance {
   Vec3 edge{0, 0, 0};
 };
 
-
 // Clearance of one obstacle (its triangles) from the line a + t u, t in
 // (0, d), over the first Fresnel radius there. `near`: its faces near the
 // zone with a lower bound of their clearance, ascending; faces are skipped
@@ -126,6 +125,7 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   auto r1 = [&](double t) { return zone.r1(t, lambda); };
   Clearance best;
   double blocked_t = -1;
+  const double mid = zone.widest(-1e300, 1e300);  // where r1 is largest, in line coordinates
   // Projection onto the plane across the line; false: beyond an end.
   auto project = [&](const std::array<Vec3, 3>& tri, std::array<P2, 3>& q, std::array<double, 3>& t) {
     int before = 0, after = 0;
@@ -150,7 +150,6 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
       if (h <= 0) {
         // Of several crossings, the one nearest mid-path (where r1 is
         // largest): independent of the order triangles are visited in.
-        const double mid = zone.widest(-1e300, 1e300);
         if (tc > 0 && tc < d && (blocked_t < 0 || std::fabs(tc - mid) < std::fabs(blocked_t - mid)))
           blocked_t = tc;
         continue;

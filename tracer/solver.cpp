@@ -230,7 +230,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
       for (const auto& h : hits)
         if (h.t < len - end_tol && !passed(h.face)) {
           ++before_end;
-          opaque = opaque || !config.refraction || em.opaque(scene.material(h.face));
+          opaque = opaque || (through_vehicles && (!config.refraction || em.opaque(scene.material(h.face))));
         }
       if (rays) *rays += hits.size() + 1;
       if (before_end > remaining) {
@@ -238,7 +238,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
         return std::nullopt;
       }
       // Blocked on the way (the loop below would say so after listing all).
-      if (through_vehicles && opaque) return std::nullopt;
+      if (opaque) return std::nullopt;
       // Several faces meet at the end point: list them all.
       if (!scene.all_hits(a, dir, t0, tfar, hits, 4096, skip)) return std::nullopt;
     }
