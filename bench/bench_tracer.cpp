@@ -352,6 +352,7 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   const auto& tm = snap.stats.time;
   state.counters["ms_image"] = 1e3 * tm.image_search;
   state.counters["ms_shoot"] = 1e3 * tm.shoot;
+  state.counters["ms_beams"] = 1e3 * tm.beams;
   state.counters["ms_edges"] = 1e3 * tm.edges;
   state.counters["ms_diffuse_views"] = 1e3 * tm.diffuse_views;
   state.counters["diffuse_tiles"] = static_cast<double>(snap.stats.diffuse_tiles);

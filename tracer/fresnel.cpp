@@ -176,7 +176,8 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
     double radius;
     std::array<P2, 3> q;
   };
-  std::vector<Piece> outline;
+  thread_local std::vector<Piece> outline;  // (no allocation per crossed obstacle)
+  outline.clear();
   for (const auto& tri : tris) {
     std::array<P2, 3> q;
     std::array<double, 3> t;
@@ -192,9 +193,17 @@ Clearance obstacle_clearance(const std::vector<std::array<Vec3, 3>>& tris, const
   std::sort(outline.begin(), outline.end(), [](const Piece& x, const Piece& y) { return x.reach > y.reach; });
   double depth = 1e300;
   P2 best_dir{0, 1};
+  // The 32 directions, evaluated once (the same std::cos / std::sin values).
+  static const std::array<P2, 32> directions = [] {
+    std::array<P2, 32> out{};
+    for (int k = 0; k < 32; ++k) {
+      const double phi = 2 * kPi * k / 32;
+      out[k] = P2{std::cos(phi), std::sin(phi)};
+    }
+    return out;
+  }();
   for (int k = 0; k < 32; ++k) {
-    const double phi = 2 * kPi * k / 32;
-    const P2 dir{std::cos(phi), std::sin(phi)};
+    const P2 dir = directions[k];
     if (upward_exits && dir.x * e1[2] + dir.y * e2[2] < -1e-9) continue;
     double out = 0;
     for (const Piece& pc : outline) {

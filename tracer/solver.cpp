@@ -155,8 +155,11 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
   const std::size_t k = faces.size();
   // Image method: mirror the source in each plane, then walk back from the
   // receiver, intersecting each plane on the way.
-  std::vector<Plane> planes(k);
-  std::vector<Vec3> images(k + 1);
+  // Fixed-size scratch (every candidate of the search passes here, most
+  // failing in the first few lines: heap vectors were a tenth of its time).
+  if (k > static_cast<std::size_t>(kMaxDepth)) return std::nullopt;
+  std::array<Plane, kMaxDepth> planes;
+  std::array<Vec3, kMaxDepth + 1> images;
   images[0] = from.position;
   for (std::size_t m = 0; m < k; ++m) {
     planes[m] = scene.plane(faces[m]);
@@ -164,7 +167,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     const double dist = dot(planes[m].normal, images[m]) - planes[m].offset;
     images[m + 1] = images[m] - (2.0 * dist) * planes[m].normal;
   }
-  std::vector<Vec3> points(k + 2);
+  std::array<Vec3, kMaxDepth + 2> points;
   points[0] = from.position;
   points[k + 1] = to.position;
   Vec3 target = to.position;
@@ -187,10 +190,11 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     Vec3 point;
     Vec3 dir_in;
   };
-  std::vector<Event> events;
-  std::vector<Vec3> dirs(k + 1);
+  thread_local std::vector<Event> events;
+  events.clear();
+  std::array<Vec3, kMaxDepth + 1> dirs;
   double length = 0;
-  std::vector<Hit> hits;
+  thread_local std::vector<Hit> hits;
   int transmissions = 0;
   for (std::size_t m = 0; m <= k; ++m) {
     const Vec3 a = points[m], b = points[m + 1];
@@ -276,6 +280,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
   // interaction in its own TE/TM basis.
   CVec3 e = cvec(antenna_field(em.radio().antenna, dirs[0], from.forward));
   Path path;
+  path.interactions.reserve(events.size());
   for (const auto& ev : events) {
     const Plane p = scene.plane(ev.face);
     const Vec3& k_in = ev.dir_in;
@@ -1310,7 +1315,8 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
           candidates[slot.at(key)].push_back(std::move(c.faces));
         }
       }
-      snap.stats.time.image_search += seconds_since(t_beams);
+      snap.stats.time.beams = seconds_since(t_beams);
+      snap.stats.time.image_search += snap.stats.time.beams;
     }
     // Thread-local order varies; the sorted set does not.
     tbb::parallel_for(std::size_t{0}, candidates.size(), [&](std::size_t p) {

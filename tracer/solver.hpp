@@ -71,6 +71,7 @@ struct SnapshotStats {
   struct Timing {
     double image_search = 0;  // wall: exact image candidates (all sources)
     double shoot = 0;         // wall: shoot-and-bounce (candidates and diffuse gathering)
+    double beams = 0;         // wall: the candidates of the rays' beams (in image_search and shoot both)
     double diffuse_views = 0; // wall: surface tiles and each node's visibility of them (diffuse)
     double edges = 0;         // wall: per-node edge visibility pre-pass (diffraction)
     double pairs = 0;         // wall: the per-pair loop below, in total
