@@ -42,7 +42,6 @@ struct DatasetWriter::Impl {
   // Running totals.
   std::uint64_t frame_count = 0, state_count = 0, link_count = 0, path_count = 0, interaction_count = 0;
   double last_time = -std::numeric_limits<double>::infinity();
-  std::string late_shard;  // set_shard(): written by finish()
   std::int64_t max_node = -1, max_object = -1;
 
   Impl(const std::filesystem::path& path, const DatasetHeader& h)
@@ -257,7 +256,6 @@ struct DatasetWriter::Impl {
 
     write_node_and_object_tables(out, nodes, objects);
 
-    if (!late_shard.empty()) out.attr("", "shard", late_shard);
     out.attr("", "frame_count", std::uint64_t{frame_count});
     out.attr("", "node_count", std::uint64_t{nodes.size()});
     out.attr("", "link_count", std::uint64_t{link_count});
@@ -291,12 +289,6 @@ DatasetWriter::~DatasetWriter() {
 void DatasetWriter::append(const FrameRecord& frame) {
   QuietHdf5 quiet;
   impl_->append(frame);
-}
-
-void DatasetWriter::set_shard(const std::string& shard_json) {
-  if (impl_->finished || !impl_->header.shard.empty())
-    throw std::logic_error(impl_->file + ": set_shard() after finish() or with a shard in the header");
-  impl_->late_shard = shard_json;
 }
 
 void DatasetWriter::finish(const std::vector<NodeInfo>& nodes, const std::vector<std::string>& objects) {

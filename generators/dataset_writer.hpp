@@ -58,11 +58,6 @@ class DatasetWriter {
   // std::runtime_error on HDF5 failures or after finish().
   void append(const FrameRecord& frame);
 
-  // The `shard` attribute (DatasetHeader::shard) when it is known only after the
-  // frames (a sweep learns its block count at the end of the trace): written by
-  // finish(). std::logic_error after finish() or when the header had one.
-  void set_shard(const std::string& shard_json);
-
   // Writes the node and object tables, the count attributes and complete = 1, and
   // closes the file. Throws std::invalid_argument when a node state or link names a
   // node >= nodes.size() or an interaction names an object >= objects.size().

@@ -10,17 +10,13 @@
 #include <fstream>
 #include <optional>
 #include <map>
-#include <memory>
 #include <set>
-
-#include <tbb/global_control.h>
 
 #include "generators/dataset_writer.hpp"
 #include "generators/frame_block.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"
-#include "pipeline/background_queue.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/config_tables.hpp"
 #include "pipeline/fcd.hpp"
@@ -223,6 +219,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   SweepSelection selection(cfg, bounds, args.fcd);
 
   generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
+  std::optional<generators::FrameBlockWriter> block;  // streamed to disk: one frame in memory
   std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0;
   bool skipping_block = false;
   json block_stats = json::array();
@@ -230,80 +227,27 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   double first_time = 0, last_time = 0;
   FcdFrame frame;
 
-  // The dataset is written as the frames come, not assembled from the blocks
-  // after the sweep: the worker below encodes each frame into its block and
-  // appends it to the dataset (committing the blocks as they fill) while the
-  // tracer goes on with the next frames. Everything from here to
-  // `disk.finish()` that the worker touches (the block writer, the dataset
-  // writer, the totals) is the worker's alone.
-  generators::DatasetHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
-  header.seed = 0;
-  header.carrier_hz = settings.radio.frequency_hz;
-  header.bandwidth_hz = settings.radio.bandwidth_hz;
-  if (options.cfr) {
-    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
-    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
-  }
-  const fs::path tmp = out.string() + ".tmp";
-  struct RemoveUnlessKept {  // nothing half-written is left when the sweep fails
-    fs::path path;
-    bool keep = false;
-    ~RemoveUnlessKept() {
-      std::error_code ec;
-      if (!keep) fs::remove(path, ec);
-    }
-  } tmp_guard{tmp};
-  json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
-                 {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
-  std::optional<generators::DatasetWriter> writer(std::in_place, tmp, header);
-  std::optional<generators::FrameBlockWriter> block;  // streamed to disk: one frame in memory
-  auto add_totals = [&](const json& st) {
-    for (auto& [k, v] : totals.items()) {
-      if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
-      else v = v.get<std::uint64_t>() + st.at(k).get<std::uint64_t>();
-    }
-  };
-  // A resumed block, from its file (a traced frame goes to the dataset as it
-  // goes to its block: the block stores values bit-exactly, so both ways
-  // give the same dataset).
-  auto assemble = [&](std::uint64_t b) {
-    generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
-    for (generators::FrameRecord f; blocks.next(f);) writer->append(f);
-    std::ifstream in(parts / (block_name(b) + ".json"));
-    add_totals(json::parse(in));
-  };
-  // Two frames in flight at most (a frame is a few MB); with one thread
-  // allowed the work runs in turn, as before.
-  BackgroundQueue disk(2, tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism) <= 1);
-
   generators::SweepStats before;  // sweep statistics at the start of the block
   auto commit_block = [&]() {
+    if (!block) return;
     const auto& s = sweep.stats();
-    json st = {{"frames", s.frames - before.frames},
-               {"links", s.links - before.links},
-               {"traced_links", s.traced_links - before.traced_links},
-               {"vehicle_updates", s.vehicle_updates - before.vehicle_updates},
-               {"updates_deferred", s.updates_deferred - before.updates_deferred},
-               {"rays", s.rays - before.rays},
-               {"trace_seconds", s.trace_seconds - before.trace_seconds}};
+    const json st = {{"frames", s.frames - before.frames},
+                     {"links", s.links - before.links},
+                     {"traced_links", s.traced_links - before.traced_links},
+                     {"vehicle_updates", s.vehicle_updates - before.vehicle_updates},
+                     {"updates_deferred", s.updates_deferred - before.updates_deferred},
+                     {"rays", s.rays - before.rays},
+                     {"trace_seconds", s.trace_seconds - before.trace_seconds}};
     before = s;
-    disk.post([&, b = block_index, st = std::move(st)] {
-      if (!block) return;
-      write_file_atomic(parts / (block_name(b) + ".json"), st.dump() + "\n");
-      block->commit();
-      block.reset();
-      // Test hook: die like `kill -9` right after a given number of commits.
-      static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
-      static int committed = 0;
-      if (kill_after && ++committed == std::atoi(kill_after)) std::raise(SIGKILL);
-      add_totals(st);
-    });
+    write_file_atomic(parts / (block_name(block_index) + ".json"), st.dump() + "\n");
+    block->commit();
+    block.reset();
+    // Test hook: die like `kill -9` right after a given number of commits.
+    static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
+    static int committed = 0;
+    if (kill_after && ++committed == std::atoi(kill_after)) std::raise(SIGKILL);
   };
+
   while (reader.next(frame)) {
     if (frame_index % options.block_frames == 0) {
       if (frame_index > 0) {
@@ -317,7 +261,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
           generators::verify_frame_block(parts / (block_name(block_index) + ".bin"));
           skipping_block = true;
           ++blocks_resumed;
-          disk.post([&, b = block_index] { assemble(b); });
         } catch (const meshkit::InputError& e) {
           spdlog::warn("{}; tracing that block again", e.what());
         }
@@ -352,12 +295,8 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       vehicles.push_back(sv);
     }
     if (!skipping_block) {
-      auto record = std::make_shared<const generators::FrameRecord>(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
-      disk.post([&, record, path = parts / (block_name(block_index) + ".bin")] {
-        if (!block) block.emplace(path);
-        block->append(*record);
-        writer->append(*record);
-      });
+      if (!block) block.emplace(parts / (block_name(block_index) + ".bin"));
+      block->append(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
     }
     ++frame_index;
 
@@ -379,7 +318,6 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
     }
   }
   if (!skipping_block) commit_block();
-  disk.finish();
   if (frame_index == 0) throw meshkit::InputError(args.fcd, "", "no frame left after the time/step filters");
   const std::uint64_t dropped_outside = selection.dropped_outside();
   if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
@@ -399,16 +337,42 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
                    args.shard->name(), shard.blocks_total, shard.block_frames);
   }
 
-  // The dataset (or the shard): every block is in it; the tables and counts close it.
-  if (args.shard) writer->set_shard(shard.to_json().dump());
+  // Assemble the dataset (or the shard) from the committed blocks.
+  generators::DatasetHeader header;
+  header.raysweep_version = kVersion;
+  header.git_hash = kGitHash;
+  header.config = config;
+  header.inputs = prov["inputs"];
+  header.provenance = prov;
+  header.seed = 0;
+  if (args.shard) header.shard = shard.to_json().dump();
+  header.carrier_hz = settings.radio.frequency_hz;
+  header.bandwidth_hz = settings.radio.bandwidth_hz;
+  if (options.cfr) {
+    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
+    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
+  }
+  const fs::path tmp = out.string() + ".tmp";
+  json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
+                 {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
   {
+    generators::DatasetWriter writer(tmp, header);
+    for (std::uint64_t b = 0; b <= block_index; ++b) {
+      if (!mine(b)) continue;
+      generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
+      for (generators::FrameRecord f; blocks.next(f);) writer.append(f);
+      std::ifstream in(parts / (block_name(b) + ".json"));
+      const json st = json::parse(in);
+      for (auto& [k, v] : totals.items()) {
+        if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
+        else v = v.get<std::uint64_t>() + st.at(k).get<std::uint64_t>();
+      }
+    }
     std::vector<std::string> ids;
     for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
-    writer->finish(node_table, sweep.object_names(ids));
-    writer.reset();
+    writer.finish(node_table, sweep.object_names(ids));
   }
   fs::rename(tmp, out);
-  tmp_guard.keep = true;
   fs::remove_all(parts);
   // A merge record next to the file describes an earlier, merged version of it.
   if (!args.shard) fs::remove(out.string() + ".merge.json");
