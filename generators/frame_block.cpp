@@ -51,7 +51,14 @@ class Out {
 
  private:
   void le(std::uint64_t v, int n) {
-    for (int i = 0; i < n; ++i) bytes.push_back(static_cast<char>((v >> (8 * i)) & 0xffu));
+    // A frame is millions of fields: one append each, not one per byte.
+    char b[8];
+    if constexpr (std::endian::native == std::endian::little) {
+      std::memcpy(b, &v, sizeof b);
+    } else {
+      for (int i = 0; i < 8; ++i) b[i] = static_cast<char>((v >> (8 * i)) & 0xffu);
+    }
+    bytes.append(b, static_cast<std::size_t>(n));
   }
 };
 
@@ -84,7 +91,11 @@ class In {
       throw meshkit::InputError(file_, "offset " + std::to_string(pos()), "truncated frame block (short read)");
     if (end_ - at_ < static_cast<std::size_t>(n)) refill();
     std::uint64_t v = 0;
-    for (int i = 0; i < n; ++i) v |= std::uint64_t{buf_[at_ + i]} << (8 * i);
+    if constexpr (std::endian::native == std::endian::little) {
+      std::memcpy(&v, buf_.data() + at_, static_cast<std::size_t>(n));
+    } else {
+      for (int i = 0; i < n; ++i) v |= std::uint64_t{buf_[at_ + i]} << (8 * i);
+    }
     at_ += static_cast<std::size_t>(n);
     pos_ += static_cast<std::uint64_t>(n);
     return v;
@@ -113,6 +124,8 @@ class In {
 }
 
 void encode_frame(Out& o, const FrameRecord& f) {
+  o.bytes.reserve(o.bytes.size() + kFrameHeaderBytes + f.nodes.size() * kNodeBytes + f.links.size() * kLinkBytes +
+                  f.paths.size() * kPathBytes + f.interactions.size() * kInteractionBytes + f.cfr.size() * kCfrBytes);
   o.f64(f.time_s);
   o.u64(f.nodes.size());
   o.u64(f.links.size());
