@@ -4,6 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <stdexcept>
+#include <string>
 
 namespace raysweep::tracer {
 
@@ -30,6 +33,14 @@ std::array<std::array<Vec3, 3>, 2> bisect(const std::array<Vec3, 3>& t) {
   const Vec3 m = 0.5 * (a + b);
   return {{{a, m, c}, {m, b, c}}};
 }
+
+struct SurfaceTile {
+  std::array<Vec3, 3> v;  // world triangle
+  Vec3 centre{0, 0, 0};
+  double area = 0;
+  double size = 0;  // longest edge
+  std::uint32_t face = 0;  // static face
+};
 
 SurfaceTile make_tile(const std::array<Vec3, 3>& t, std::uint32_t face) {
   SurfaceTile s;
@@ -94,96 +105,143 @@ struct DiffuseTiles::View {
   const Node* node = nullptr;
 };
 
-// One node's visibility cut through the tile tree.
-struct DiffuseTiles::Sight {
-  // Per tree node: kBelow, kHidden, kRefine, or the index of its view (seen).
-  std::vector<std::int32_t> slot;
-  std::vector<View> views;
+// The tile tree in pre-order (depth first, the first half first): node i's
+// first child is i + 1, its second child end[i + 1], and its subtree ends
+// before end[i] (a leaf: end[i] == i + 1). So every walk of the tree, which
+// goes depth first, visits nodes in index order: one end's visited nodes
+// are a sorted list, a pair's walk merges its two ends' lists, and both
+// read the tree's arrays forwards.
+struct DiffuseTiles::Tree {
+  std::vector<Vec3> centre;
+  std::vector<double> size;  // longest edge
+  std::vector<std::uint32_t> face;  // static face
+  std::vector<std::uint32_t> end;
+  std::vector<std::array<Vec3, 3>> v;  // world triangle
+  std::vector<double> area;
+  std::vector<std::uint32_t> roots;
+  std::size_t leaves = 0;
+
+  bool leaf(std::uint32_t t) const { return end[t] == t + 1; }
+
+  // `t` and its subtree, halved down to leaves of longest edge <= leaf_m.
+  void add(const std::array<Vec3, 3>& t, std::uint32_t f, double leaf_m) {
+    const auto i = static_cast<std::uint32_t>(centre.size());
+    const SurfaceTile s = make_tile(t, f);
+    centre.push_back(s.centre);
+    size.push_back(s.size);
+    face.push_back(f);
+    end.push_back(i + 1);
+    v.push_back(t);
+    area.push_back(s.area);
+    if (s.size <= leaf_m) {
+      ++leaves;
+      return;
+    }
+    const auto halves = bisect(t);
+    add(halves[0], f, leaf_m);
+    add(halves[1], f, leaf_m);
+    end[i] = static_cast<std::uint32_t>(centre.size());
+  }
 };
 
 namespace {
 enum : std::int32_t { kBelow = -1, kHidden = -2, kRefine = -3 };
 constexpr double kRootTileM = 32;
+
+struct Visit {
+  std::uint32_t node;
+  std::int32_t state;  // kHidden, kRefine, or the index of the node's view of the tile
+};
 }  // namespace
+
+// One node's visibility cut through the tile tree: the tree nodes its walk
+// visited, in index order, with what it decided there.
+struct DiffuseTiles::Sight {
+  std::vector<Visit> visits;
+  std::vector<View> views;
+};
 
 DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, const std::vector<Node>& nodes,
                            const std::vector<unsigned char>& wanted, const TracerConfig& cfg, double range)
     : scene_(scene), em_(em), nodes_(nodes), ratio_(cfg.diffuse_tile_ratio), shadow_ratio_(cfg.diffuse_shadow_ratio) {
   const auto nf = static_cast<std::uint32_t>(scene.face_count(0));
-  std::vector<unsigned char> rough(nf, 0);
+  std::string rough(nf, '\0');
   for (std::uint32_t f = 0; f < nf; ++f) rough[f] = em.material(scene.material(FaceRef{0, f})).scattering.s > 0;
-  // Roots, then each root's subtree down to the leaves.
+  // The static faces never move: their tree is built once per scene, tile
+  // size and set of rough faces.
   const double leaf_m = cfg.diffuse_tile_m;
-  for (const SurfaceTile& r : tile_static_faces(scene, rough, std::max(leaf_m, kRootTileM))) {
-    roots_.push_back(static_cast<std::uint32_t>(tree_.size()));
-    tree_.push_back(r);
-    child_.push_back(-1);
-  }
-  for (std::size_t i = 0; i < tree_.size(); ++i) {  // grows while it runs: breadth first
-    if (tree_[i].size <= leaf_m) {
-      ++leaves_;
-      continue;
+  char key[64];
+  std::snprintf(key, sizeof key, "diffuse-tiles %.17g ", leaf_m);
+  tree_ = std::static_pointer_cast<const Tree>(scene.static_memo(key + rough, [&]() -> std::shared_ptr<const void> {
+    auto tree = std::make_shared<Tree>();
+    const std::vector<unsigned char> wanted_faces(rough.begin(), rough.end());
+    for (const SurfaceTile& r : tile_static_faces(scene, wanted_faces, std::max(leaf_m, kRootTileM))) {
+      tree->roots.push_back(static_cast<std::uint32_t>(tree->centre.size()));
+      tree->add(r.v, r.face, leaf_m);
     }
-    const auto halves = bisect(tree_[i].v);
-    child_[i] = static_cast<std::int32_t>(tree_.size());
-    for (const auto& h : halves) {
-      tree_.push_back(make_tile(h, tree_[i].face));
-      child_.push_back(-1);
-    }
-  }
+    return tree;
+  }));
+  const Tree& T = *tree_;
   sight_.resize(nodes.size());
   std::vector<std::uint64_t> rays(nodes.size(), 0);
   tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t i) {
     if (!wanted[i]) return;
     Sight& sight = sight_[i];
-    sight.slot.assign(tree_.size(), kBelow);
+    const auto node = static_cast<std::uint32_t>(i);
     const Vec3 x = nodes[i].position;
     const double t0 = scene.slack(x, 0) * 0.1;
-    std::vector<std::uint32_t> stack(roots_.rbegin(), roots_.rend());
+    std::vector<std::uint32_t> stack(T.roots.rbegin(), T.roots.rend());
+    auto refine = [&](std::uint32_t t) {
+      sight.visits.push_back({t, kRefine});
+      stack.push_back(T.end[t + 1]);
+      stack.push_back(t + 1);
+    };
     while (!stack.empty()) {
       const std::uint32_t t = stack.back();
       stack.pop_back();
-      const SurfaceTile& tile = tree_[t];
-      const double r = norm(tile.centre - x);
-      if (r - tile.size > range) {
-        sight.slot[t] = kHidden;
+      const Vec3& centre = T.centre[t];
+      const double r = norm(centre - x);
+      if (r - T.size[t] > range) {
+        sight.visits.push_back({t, kHidden});
         continue;
       }
-      if (child_[t] >= 0 && tile.size > ratio_ * r) {
-        sight.slot[t] = kRefine;
-        stack.push_back(static_cast<std::uint32_t>(child_[t] + 1));
-        stack.push_back(static_cast<std::uint32_t>(child_[t]));
+      const bool inner = !T.leaf(t);
+      if (inner && T.size[t] > ratio_ * r) {
+        refine(t);
         continue;
       }
       View v;
-      sight.slot[t] = kHidden;
-      if (!view(static_cast<std::uint32_t>(i), tile.centre, tile.face, v)) continue;
+      if (!faces(node, centre, T.face[t], v)) {
+        sight.visits.push_back({t, kHidden});
+        continue;
+      }
       // Anything between the antenna and a point of the tile shadows it.
       auto clear = [&](const Vec3& p) {
         const Vec3 w = p - x;
         const double r = norm(w);
         const double tfar = r - std::max(scene.slack(p, 0), 1e-6 * r);
-        Hit hit;
         ++rays[i];
-        return !(tfar > t0 && scene.closest_hit(x, (1.0 / r) * w, t0, tfar, hit));
+        return !(tfar > t0 && scene.occluded(x, (1.0 / r) * w, t0, tfar));
       };
-      const bool seen = clear(tile.centre);
-      if (child_[t] >= 0 && tile.size > shadow_ratio_ * r) {
+      const bool seen = clear(centre);
+      if (inner && T.size[t] > shadow_ratio_ * r) {
         // Not a leaf: where a shadow edge crosses the tile (its corners,
         // pulled a tenth towards the centre, disagree with the centre), the
         // tile is refined down to where they agree, or to the leaves.
         bool agree = true;
-        for (int q = 0; q < 3 && agree; ++q) agree = clear(0.9 * tile.v[q] + 0.1 * tile.centre) == seen;
+        for (int q = 0; q < 3 && agree; ++q) agree = clear(0.9 * T.v[t][q] + 0.1 * centre) == seen;
         if (!agree) {
-          sight.slot[t] = kRefine;
-          stack.push_back(static_cast<std::uint32_t>(child_[t] + 1));
-          stack.push_back(static_cast<std::uint32_t>(child_[t]));
+          refine(t);
           continue;
         }
       }
-      if (!seen) continue;
-      sight.slot[t] = static_cast<std::int32_t>(sight.views.size());
+      if (!seen) {
+        sight.visits.push_back({t, kHidden});
+        continue;
+      }
+      complete(node, T.face[t], v);
       v.tile = t;
+      sight.visits.push_back({t, static_cast<std::int32_t>(sight.views.size())});
       sight.views.push_back(v);
     }
   });
@@ -192,16 +250,17 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
 
 DiffuseTiles::~DiffuseTiles() = default;
 
+std::size_t DiffuseTiles::tile_count() const { return tree_->leaves; }
+
 std::uint64_t DiffuseTiles::views() const {
   std::uint64_t n = 0;
   for (const auto& s : sight_) n += s.views.size();
   return n;
 }
 
-bool DiffuseTiles::view(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& v) const {
+bool DiffuseTiles::faces(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& v) const {
   const Node& nd = nodes_[node];
-  const FaceRef ref{0, face};
-  const Plane pl = scene_.plane(ref);
+  const Plane pl = scene_.plane(FaceRef{0, face});
   const double h = dot(pl.normal, nd.position) - pl.offset;
   if (h == 0) return false;  // in the plane: grazing, nothing scatters
   const Vec3 w = centre - nd.position;
@@ -210,7 +269,12 @@ bool DiffuseTiles::view(std::uint32_t node, const Vec3& centre, std::uint32_t fa
   v.k = (1.0 / v.r) * w;
   v.n_front = h > 0 ? pl.normal : -pl.normal;
   v.cos_i = -dot(v.k, v.n_front);
-  if (!(v.cos_i > 0)) return false;
+  return v.cos_i > 0;
+}
+
+void DiffuseTiles::complete(std::uint32_t node, std::uint32_t face, View& v) const {
+  const Node& nd = nodes_[node];
+  const FaceRef ref{0, face};
   v.material = scene_.material(ref);
   v.object = scene_.object(ref);
   v.sc = &em_.material(v.material).scattering;
@@ -223,8 +287,7 @@ bool DiffuseTiles::view(std::uint32_t node, const Vec3& centre, std::uint32_t fa
   const cdouble a_te = c.r.te * dot(v.field, es), a_tm = c.r.tm * dot(v.field, ep_in);
   for (int q = 0; q < 3; ++q) v.e_ref[q] = a_te * es[q] + a_tm * ep_out[q];
   v.e_ref2 = std::norm(v.e_ref[0]) + std::norm(v.e_ref[1]) + std::norm(v.e_ref[2]);
-  v.lobe = ScatteringLobeAt(*v.sc, v.k, pl.normal);
-  return true;
+  v.lobe = ScatteringLobeAt(*v.sc, v.k, scene_.plane(ref).normal);
 }
 
 namespace {
@@ -298,62 +361,79 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     const double dl = -(dot(x.k, x.node->velocity) + dot(y.k, y.node->velocity));
     B.doppler += p * (-dl / lambda);
   };
+  const Tree& T = *tree_;
   const Sight& sa = sight_[a];
   const Sight& sb = sight_[b];
   // Depth first through the tree. A node's visibility is decided at its
-  // cut; below it, tiles inherit it (`seen_a`, `seen_b`).
+  // cut; below it, tiles inherit it (`seen_a`, `seen_b`). Where an end
+  // refined, its walk visited the children too, so the next entry of its
+  // list is the tile this walk reaches (both go in index order).
+  std::size_t ia = 0, ib = 0;
+  auto take = [&](const Sight& s, std::size_t& i, std::uint32_t t) {
+    if (i >= s.visits.size() || s.visits[i].node != t) throw std::logic_error("diffuse tiles: walks out of step");
+    return s.visits[i++].state;
+  };
+  // Past an end's visits below t (the other end does not see t).
+  auto skip = [&](const Sight& s, std::size_t& i, std::uint32_t t) {
+    i = static_cast<std::size_t>(std::lower_bound(s.visits.begin() + static_cast<std::ptrdiff_t>(i), s.visits.end(),
+                                                  T.end[t], [](const Visit& v, std::uint32_t e) { return v.node < e; }) -
+                                 s.visits.begin());
+  };
   struct Item {
     std::uint32_t t;
     bool seen_a, seen_b;
   };
   std::vector<Item> stack;
-  for (auto it = roots_.rbegin(); it != roots_.rend(); ++it) stack.push_back({*it, false, false});
+  for (auto it = T.roots.rbegin(); it != T.roots.rend(); ++it) stack.push_back({*it, false, false});
   std::vector<std::pair<std::array<Vec3, 3>, int>> finer;
   while (!stack.empty()) {
     const Item item = stack.back();
     stack.pop_back();
     const std::uint32_t t = item.t;
-    const std::int32_t slot_a = item.seen_a ? kBelow : sa.slot[t];
-    const std::int32_t slot_b = item.seen_b ? kBelow : sb.slot[t];
+    const std::int32_t slot_a = item.seen_a ? kBelow : take(sa, ia, t);
+    const std::int32_t slot_b = item.seen_b ? kBelow : take(sb, ib, t);
     const bool seen_a = item.seen_a || slot_a >= 0, seen_b = item.seen_b || slot_b >= 0;
-    if (!seen_a && slot_a != kRefine) continue;  // hidden (or never looked at)
-    if (!seen_b && slot_b != kRefine) continue;
-    if (!seen_a || !seen_b) {
-      const auto c = static_cast<std::uint32_t>(child_[t]);
-      stack.push_back({c + 1, seen_a, seen_b});
-      stack.push_back({c, seen_a, seen_b});
+    if ((!seen_a && slot_a != kRefine) || (!seen_b && slot_b != kRefine)) {  // hidden from an end
+      if (slot_a == kRefine) skip(sa, ia, t);
+      if (slot_b == kRefine) skip(sb, ib, t);
       continue;
     }
-    // Both ends see this tile: integrate it, finer where an end is close.
-    const SurfaceTile& tile = tree_[t];
+    if (!seen_a || !seen_b) {
+      stack.push_back({T.end[t + 1], seen_a, seen_b});
+      stack.push_back({t + 1, seen_a, seen_b});
+      continue;
+    }
+    // Both ends see this tile (so neither list goes below it): integrate
+    // it, finer where an end is close.
+    const Vec3& centre = T.centre[t];
+    const std::uint32_t face = T.face[t];
     View ca, cb;
     const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
     const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
     if (!va) {
-      if (!view(a, tile.centre, tile.face, ca)) continue;
+      if (!view(a, centre, face, ca)) continue;
       va = &ca;
     }
     if (!vb) {
-      if (!view(b, tile.centre, tile.face, cb)) continue;
+      if (!view(b, centre, face, cb)) continue;
       vb = &cb;
     }
-    if (tile.size <= ratio_ * std::min(va->r, vb->r)) {
-      add(*va, *vb, tile.area, tile.centre);
+    if (T.size[t] <= ratio_ * std::min(va->r, vb->r)) {
+      add(*va, *vb, T.area[t], centre);
       continue;
     }
-    if (child_[t] >= 0) {
-      const auto c = static_cast<std::uint32_t>(child_[t]);
-      stack.push_back({c + 1, true, true});
-      stack.push_back({c, true, true});
+    if (!T.leaf(t)) {
+      stack.push_back({T.end[t + 1], true, true});
+      stack.push_back({t + 1, true, true});
       continue;
     }
     // Below the leaves: bisected for this pair only.
-    finer.assign(1, {tile.v, 0});
+    finer.assign(1, {T.v[t], 0});
     while (!finer.empty()) {
       const auto [tri, depth] = finer.back();
       finer.pop_back();
-      const SurfaceTile child = make_tile(tri, tile.face);
-      if (!view(a, child.centre, tile.face, ca) || !view(b, child.centre, tile.face, cb)) continue;
+      const SurfaceTile child = make_tile(tri, face);
+      if (!view(a, child.centre, face, ca) || !view(b, child.centre, face, cb)) continue;
       if (depth < 12 && child.size > ratio_ * std::min(ca.r, cb.r)) {
         const auto halves = bisect(tri);
         finer.push_back({halves[1], depth + 1});

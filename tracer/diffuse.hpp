@@ -29,25 +29,19 @@
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {
 
-struct SurfaceTile {
-  std::array<Vec3, 3> v;  // world triangle
-  Vec3 centre{0, 0, 0};
-  double area = 0;
-  double size = 0;  // longest edge
-  std::uint32_t face = 0;  // static face
-};
-
 class DiffuseTiles {
  public:
-  // The tile tree of the scattering static faces, and each wanted node's
-  // view of it (visibility rays: counted in rays()). `range`: tiles farther
-  // from a node than this are not seen by it.
+  // The tile tree of the scattering static faces (built once per scene and
+  // tile size, kept with the TraceScene), and each wanted node's view of it
+  // (visibility rays: counted in rays()). `range`: tiles farther from a
+  // node than this are not seen by it.
   DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, const std::vector<Node>& nodes,
                const std::vector<unsigned char>& wanted, const TracerConfig& cfg, double range);
   ~DiffuseTiles();
@@ -57,28 +51,31 @@ class DiffuseTiles {
   // phase of the bin delay's carrier phase), appended to `out`.
   void pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const;
 
-  std::size_t tile_count() const { return leaves_; }  // finest tiles (longest edge <= diffuse_tile_m)
+  std::size_t tile_count() const;  // finest tiles (longest edge <= diffuse_tile_m)
   std::uint64_t rays() const { return rays_; }
   std::uint64_t views() const;  // (node, tile) visibility decisions
 
+  struct Tree;   // the tile tree
   struct View;   // a tile as one node sees it
   struct Sight;  // one node's visibility cut through the tile tree
 
  private:
-  bool view(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& out) const;
+  // The part of the view that decides whether the node faces the tile.
+  bool faces(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& out) const;
+  // The rest: the incident field and the lobe (after faces() held).
+  void complete(std::uint32_t node, std::uint32_t face, View& out) const;
+  bool view(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& out) const {
+    if (!faces(node, centre, face, out)) return false;
+    complete(node, face, out);
+    return true;
+  }
 
   const TraceScene& scene_;
   const Electromagnetics& em_;
   const std::vector<Node>& nodes_;
   double ratio_ = 0.25;
   double shadow_ratio_ = 0;
-  // Tile tree: roots of longest edge <= 32 m (or the leaf size), halved by
-  // longest-edge bisection down to leaves of <= diffuse_tile_m; the two
-  // children of tree_[i] are tree_[child_[i]] and tree_[child_[i] + 1].
-  std::vector<SurfaceTile> tree_;
-  std::vector<std::int32_t> child_;
-  std::vector<std::uint32_t> roots_;
-  std::size_t leaves_ = 0;
+  std::shared_ptr<const Tree> tree_;
   std::vector<Sight> sight_;  // per node
   std::uint64_t rays_ = 0;
 };

@@ -143,6 +143,8 @@ struct TraceScene::Impl {
   // (a bitset: a list per face and side grows as faces squared in ints).
   std::vector<std::uint64_t> reaching;
   std::size_t reaching_words = 0;
+  mutable std::mutex memo_mutex;
+  mutable std::map<std::string, std::shared_ptr<const void>> memo;
 
   const Shape& shape_of(const FaceRef& f, const std::vector<VehiclePose>& vehicles) const {
     return f.instance == 0 ? world : *models[vehicles[f.instance - 1].model];
@@ -1015,6 +1017,15 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
 }
 
 }  // namespace
+
+std::shared_ptr<const void> TraceScene::static_memo(const std::string& key,
+                                                    const std::function<std::shared_ptr<const void>()>& make) const {
+  const auto& d = *impl_;
+  const std::lock_guard<std::mutex> lock(d.memo_mutex);
+  auto& slot = d.memo[key];
+  if (!slot) slot = make();
+  return slot;
+}
 
 TraceScene::BounceQuery TraceScene::vehicle_bounce_sequences(std::size_t v, const Vec3& dir, double spread) const {
   const auto& d = *impl_;

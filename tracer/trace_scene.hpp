@@ -11,6 +11,7 @@
 
 #include <array>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -188,6 +189,12 @@ class TraceScene {
   // Shoots `directions.size()` rays from `origin` (closest hit), for measuring
   // Embree's raw throughput on this scene; returns how many hit.
   std::size_t shoot_raw(const Vec3& origin, const std::vector<Vec3>& directions, double tfar) const;
+
+  // Data derived from the static scene alone (it never moves), built by
+  // `make` on the first request for `key` and kept for every later frame:
+  // e.g. the diffuse tile tree. Thread-safe; `make` runs under a lock.
+  std::shared_ptr<const void> static_memo(const std::string& key,
+                                          const std::function<std::shared_ptr<const void>()>& make) const;
 
   struct Shape;  // geometry of one Embree scene (static or a vehicle model)
 
