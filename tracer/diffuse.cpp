@@ -112,27 +112,26 @@ struct DiffuseTiles::View {
 // are a sorted list, a pair's walk merges its two ends' lists, and both
 // read the tree's arrays forwards.
 struct DiffuseTiles::Tree {
-  std::vector<Vec3> centre;
-  std::vector<double> size;  // longest edge
-  std::vector<std::uint32_t> face;  // static face
-  std::vector<std::uint32_t> end;
+  struct Tile {  // what the walks read, together (one cache line or two)
+    Vec3 centre;
+    double size;  // longest edge
+    double area;
+    std::uint32_t face;  // static face
+    std::uint32_t end;
+  };
+  std::vector<Tile> tile;
   std::vector<std::array<Vec3, 3>> v;  // world triangle
-  std::vector<double> area;
   std::vector<std::uint32_t> roots;
   std::size_t leaves = 0;
 
-  bool leaf(std::uint32_t t) const { return end[t] == t + 1; }
+  bool leaf(std::uint32_t t) const { return tile[t].end == t + 1; }
 
   // `t` and its subtree, halved down to leaves of longest edge <= leaf_m.
   void add(const std::array<Vec3, 3>& t, std::uint32_t f, double leaf_m) {
-    const auto i = static_cast<std::uint32_t>(centre.size());
+    const auto i = static_cast<std::uint32_t>(tile.size());
     const SurfaceTile s = make_tile(t, f);
-    centre.push_back(s.centre);
-    size.push_back(s.size);
-    face.push_back(f);
-    end.push_back(i + 1);
+    tile.push_back({s.centre, s.size, s.area, f, i + 1});
     v.push_back(t);
-    area.push_back(s.area);
     if (s.size <= leaf_m) {
       ++leaves;
       return;
@@ -140,7 +139,7 @@ struct DiffuseTiles::Tree {
     const auto halves = bisect(t);
     add(halves[0], f, leaf_m);
     add(halves[1], f, leaf_m);
-    end[i] = static_cast<std::uint32_t>(centre.size());
+    tile[i].end = static_cast<std::uint32_t>(tile.size());
   }
 };
 
@@ -176,7 +175,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
     auto tree = std::make_shared<Tree>();
     const std::vector<unsigned char> wanted_faces(rough.begin(), rough.end());
     for (const SurfaceTile& r : tile_static_faces(scene, wanted_faces, std::max(leaf_m, kRootTileM))) {
-      tree->roots.push_back(static_cast<std::uint32_t>(tree->centre.size()));
+      tree->roots.push_back(static_cast<std::uint32_t>(tree->tile.size()));
       tree->add(r.v, r.face, leaf_m);
     }
     return tree;
@@ -193,25 +192,25 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
     std::vector<std::uint32_t> stack(T.roots.rbegin(), T.roots.rend());
     auto refine = [&](std::uint32_t t) {
       sight.visits.push_back({t, kRefine});
-      stack.push_back(T.end[t + 1]);
+      stack.push_back(T.tile[t + 1].end);
       stack.push_back(t + 1);
     };
     while (!stack.empty()) {
       const std::uint32_t t = stack.back();
       stack.pop_back();
-      const Vec3& centre = T.centre[t];
+      const Vec3& centre = T.tile[t].centre;
       const double r = norm(centre - x);
-      if (r - T.size[t] > range) {
+      if (r - T.tile[t].size > range) {
         sight.visits.push_back({t, kHidden});
         continue;
       }
       const bool inner = !T.leaf(t);
-      if (inner && T.size[t] > ratio_ * r) {
+      if (inner && T.tile[t].size > ratio_ * r) {
         refine(t);
         continue;
       }
       View v;
-      if (!faces(node, centre, T.face[t], v)) {
+      if (!faces(node, centre, T.tile[t].face, v)) {
         sight.visits.push_back({t, kHidden});
         continue;
       }
@@ -224,7 +223,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
         return !(tfar > t0 && scene.occluded(x, (1.0 / r) * w, t0, tfar));
       };
       const bool seen = clear(centre);
-      if (inner && T.size[t] > shadow_ratio_ * r) {
+      if (inner && T.tile[t].size > shadow_ratio_ * r) {
         // Not a leaf: where a shadow edge crosses the tile (its corners,
         // pulled a tenth towards the centre, disagree with the centre), the
         // tile is refined down to where they agree, or to the leaves.
@@ -239,7 +238,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
         sight.visits.push_back({t, kHidden});
         continue;
       }
-      complete(node, T.face[t], v);
+      complete(node, T.tile[t].face, v);
       v.tile = t;
       sight.visits.push_back({t, static_cast<std::int32_t>(sight.views.size())});
       sight.views.push_back(v);
@@ -373,11 +372,21 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     if (i >= s.visits.size() || s.visits[i].node != t) throw std::logic_error("diffuse tiles: walks out of step");
     return s.visits[i++].state;
   };
-  // Past an end's visits below t (the other end does not see t).
+  // Past an end's visits below t (the other end does not see t): a
+  // galloping search, as most skips are short.
   auto skip = [&](const Sight& s, std::size_t& i, std::uint32_t t) {
-    i = static_cast<std::size_t>(std::lower_bound(s.visits.begin() + static_cast<std::ptrdiff_t>(i), s.visits.end(),
-                                                  T.end[t], [](const Visit& v, std::uint32_t e) { return v.node < e; }) -
-                                 s.visits.begin());
+    const std::uint32_t e = T.tile[t].end;
+    const std::size_t n = s.visits.size();
+    std::size_t lo = i, step = 1;
+    while (lo + step < n && s.visits[lo + step].node < e) {
+      lo += step;
+      step *= 2;
+    }
+    const auto first = s.visits.begin() + static_cast<std::ptrdiff_t>(lo);
+    const auto last = s.visits.begin() + static_cast<std::ptrdiff_t>(std::min(n, lo + step));
+    i = static_cast<std::size_t>(
+        std::lower_bound(first, last, e, [](const Visit& v, std::uint32_t x) { return v.node < x; }) -
+        s.visits.begin());
   };
   struct Item {
     std::uint32_t t;
@@ -399,14 +408,14 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
       continue;
     }
     if (!seen_a || !seen_b) {
-      stack.push_back({T.end[t + 1], seen_a, seen_b});
+      stack.push_back({T.tile[t + 1].end, seen_a, seen_b});
       stack.push_back({t + 1, seen_a, seen_b});
       continue;
     }
     // Both ends see this tile (so neither list goes below it): integrate
     // it, finer where an end is close.
-    const Vec3& centre = T.centre[t];
-    const std::uint32_t face = T.face[t];
+    const Vec3& centre = T.tile[t].centre;
+    const std::uint32_t face = T.tile[t].face;
     View ca, cb;
     const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
     const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
@@ -418,12 +427,12 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
       if (!view(b, centre, face, cb)) continue;
       vb = &cb;
     }
-    if (T.size[t] <= ratio_ * std::min(va->r, vb->r)) {
-      add(*va, *vb, T.area[t], centre);
+    if (T.tile[t].size <= ratio_ * std::min(va->r, vb->r)) {
+      add(*va, *vb, T.tile[t].area, centre);
       continue;
     }
     if (!T.leaf(t)) {
-      stack.push_back({T.end[t + 1], true, true});
+      stack.push_back({T.tile[t + 1].end, true, true});
       stack.push_back({t + 1, true, true});
       continue;
     }
