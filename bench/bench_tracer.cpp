@@ -30,15 +30,18 @@
 //                                search for shoot-and-bounce alone (4),
 //                                integrate diffuse by tiles (8), and leave out
 //                                ground_order3 (16), vehicle_multi_bounce (32)
-//                                or the diffuse gathering's second end (64). Counters
+//                                or the diffuse gathering's second end (64), or
+//                                integrate first-order diffuse by tiles and the
+//                                rest by rays (128, "hybrid"). Counters
 //                                ms_* / tms_* say where the time went
 //                                (SnapshotStats::Timing). Poses come
 //                                from place_on_lanes(net, N, seed 1,
 //                                passenger:truck:bus = 8:1:1); when that mix does
 //                                not fit, passenger cars only (counter
 //                                passenger_only = 1 and the label say which).
-//                                Scene, models and poses are set up outside the
-//                                timed loop. Counters: pairs, rays (Embree
+//                                Scene, models, poses, the vehicles' bounce
+//                                tables and the diffuse tile tree are set up
+//                                outside the timed loop (a sweep builds them once). Counters: pairs, rays (Embree
 //                                queries per snapshot), paths, candidates, the
 //                                LOS / NLOSV / NLOS pair counts, pairs without
 //                                any path, and pairs_per_s / rays_per_s over
@@ -277,13 +280,14 @@ enum Mechanisms {
   kTiles = 8,
   kNoGround3 = 16,
   kNoMultiBounce = 32,
-  kOneEnd = 64
+  kOneEnd = 64,
+  kHybrid = 128
 };
 std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
   return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search") +
          (m & kNoGround3 ? ", no ground_order3" : "") + (m & kNoMultiBounce ? ", no vehicle_multi_bounce" : "") +
-         (m & kOneEnd ? ", diffuse from one end" : "");
+         (m & kOneEnd ? ", diffuse from one end" : "") + (m & kHybrid ? ", diffuse hybrid" : "");
 }
 
 // The per-model multi-bounce tables are built on first use and kept with the
@@ -306,12 +310,16 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   cfg.diffuse = mech & kDiffuse;
   if (mech & kSbr) cfg.candidates = tracer::CandidateSearch::sbr;
   if (mech & kTiles) cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
+  if (mech & kHybrid) cfg.diffuse_integration = tracer::DiffuseIntegration::hybrid;
   if (mech & kNoGround3) cfg.ground_order3 = false;
   if (mech & kNoMultiBounce) cfg.vehicle_multi_bounce = false;
   if (mech & kOneEnd) cfg.diffuse_both_ends = false;
   const tracer::RadioConfig radio;
   tracer::Snapshot snap;
   warm_bounce_tables(*scene, cfg);
+  // Likewise the diffuse tile tree (built once per scene): two nodes build it.
+  if (cfg.diffuse && cfg.diffuse_integration != tracer::DiffuseIntegration::rays && nodes.size() >= 2)
+    tracer::trace_snapshot(*scene, {nodes[0], nodes[1]}, cfg, radio);
   for (auto _ : state) {
     snap = tracer::trace_snapshot(*scene, nodes, cfg, radio);
     benchmark::DoNotOptimize(snap.pairs.data());
@@ -489,7 +497,8 @@ void register_all() {
     for (int n : {5, 10, 20, 40, 120}) snap->Args({n, kAll});
     // The cost of each mechanism (issue 5), at two traffic densities.
     for (int n : {20, 60})
-      for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll})
+      for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll,
+                    kHybrid | kAll})
         snap->Args({n, m});
     // What each completeness class costs (issue 14), at 60 vehicles.
     for (int m : {kSpecular | kNoGround3, kSpecular | kNoMultiBounce, kAll | kOneEnd}) snap->Args({60, m});

@@ -67,7 +67,7 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
   // surfaces keep sqrt(1 - S^2) of the specular field as in `trace`; else
   // they reflect their whole |Gamma|^2 (energy kept, no lobe).
   const tracer::Electromagnetics em(scene.material_names(), radio, cfg.materials,
-                                    cfg.diffuse && cfg.diffuse_integration == tracer::DiffuseIntegration::rays);
+                                    cfg.diffuse && cfg.diffuse_integration != tracer::DiffuseIntegration::tiles);
   const double range = tracer::max_range_m(cfg, radio);
   const double lambda = em.wavelength();
   const int order = cfg.specular ? std::min(cfg.max_depth, 2) : 0;

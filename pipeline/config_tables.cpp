@@ -372,9 +372,11 @@ const Table<TraceSettings>& tracer_table() {
     t.key("diffuse", boolean(), FIELD(tracer.diffuse), "", "effective-roughness diffuse scattering");
     t.key("diffuse_integration",
           enumeration<tracer::DiffuseIntegration>({{"tiles", tracer::DiffuseIntegration::tiles},
-                                                   {"rays", tracer::DiffuseIntegration::rays}}),
+                                                   {"rays", tracer::DiffuseIntegration::rays},
+                                                   {"hybrid", tracer::DiffuseIntegration::hybrid}}),
           FIELD(tracer.diffuse_integration), "",
-          "tiles: deterministic, first order; rays: over the shoot-and-bounce hits, any order");
+          "tiles: deterministic, first order; rays: over the shoot-and-bounce hits, any order; hybrid: tiles for "
+          "the first order, rays for scattering next to reflections and slabs");
     t.key("diffuse_tile_m", number(above(0)), FIELD(tracer.diffuse_tile_m), "m", "tiles: the finest tile's edge");
     t.key("diffuse_tile_ratio", number(above(0)), FIELD(tracer.diffuse_tile_ratio), "",
           "tiles: largest tile over its distance");

@@ -209,7 +209,8 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
 
   // Diffuse scattering: the voxels where it is gathered exactly (one per
   // block and layer, nearest the block's centre), and each voxel's.
-  const bool diffuse = trace.tracer.diffuse && trace.tracer.diffuse_integration == tracer::DiffuseIntegration::rays;
+  // Hybrid gathers by rays here: the transmitter's rays reach first-order scattering only.
+  const bool diffuse = trace.tracer.diffuse && trace.tracer.diffuse_integration != tracer::DiffuseIntegration::tiles;
   std::vector<std::uint32_t> diffuse_at(voxels.size());
   std::vector<std::uint32_t> diffuse_samples;
   if (diffuse) {

@@ -353,13 +353,21 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.diffuse = s.tracer.diffraction = false;
       grid.push_back(s);
     }
-    // The diffuse integration: the other method, and coarser tiles.
+    // The diffuse integration: the other methods, and coarser tiles.
     if (base.diffuse) {
-      const bool tiles = base.diffuse_integration == tracer::DiffuseIntegration::tiles;
-      s = variant(tiles ? "diffuse by rays" : "diffuse by tiles");
-      s.tracer.diffuse_integration = tiles ? tracer::DiffuseIntegration::rays : tracer::DiffuseIntegration::tiles;
-      grid.push_back(s);
-      if (tiles) {
+      using DI = tracer::DiffuseIntegration;
+      const std::pair<DI, const char*> methods[] = {
+          {DI::rays, "diffuse by rays"}, {DI::tiles, "diffuse by tiles"}, {DI::hybrid, "diffuse hybrid"}};
+      for (const auto& [how, label] : methods) {
+        if (how == base.diffuse_integration) continue;
+        s = variant(label);
+        s.tracer.diffuse_integration = how;
+        grid.push_back(s);
+      }
+      if (base.diffuse_integration != DI::rays) {
+        s = variant("tile ratio x2");
+        s.tracer.diffuse_tile_ratio = 2 * base.diffuse_tile_ratio;
+        grid.push_back(s);
         s = variant("coarse tiles");
         s.tracer.diffuse_tile_m = 4 * base.diffuse_tile_m;
         s.tracer.diffuse_tile_ratio = 2 * base.diffuse_tile_ratio;

@@ -487,6 +487,64 @@ TEST(Diffuse, ScatteringBeforeAndAfterAReflectionBothCount) {
   EXPECT_GT(fwd, std::max(one_fwd, one_back));
 }
 
+TEST(Diffuse, HybridIsTheTilesFirstOrderPlusTheRaysChains) {
+  // The same wall and ground. `hybrid` integrates first-order scattering by
+  // tiles and leaves the rest (a ground bounce before or after the wall) to
+  // the rays: its single-interaction diffuse paths are the tiles' own, bit
+  // for bit, every other one holds a reflection, and the whole agrees with
+  // the rays' estimate of both (two estimators of one integral).
+  meshkit::Scene sc;
+  add_ground(sc, 100);
+  add_box_object(sc, {5, -4, 0}, {6, 4, 5}, "metal", "wall");
+  tracer::TraceScene scene(sc);
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = 1 << 16;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  cfg.materials["metal"] = lambertian_override();
+  const std::vector<tracer::Node> nodes{node("a", {-15, 1, 6}), node("b", {3, -1, 1})};
+  const auto trace = [&](tracer::DiffuseIntegration how) {
+    cfg.diffuse_integration = how;
+    return tracer::trace_snapshot(scene, nodes, cfg, {}).pairs.at(0);
+  };
+  const auto rays = trace(tracer::DiffuseIntegration::rays);
+  const auto tiles = trace(tracer::DiffuseIntegration::tiles);
+  const auto hybrid = trace(tracer::DiffuseIntegration::hybrid);
+  const auto is_diffuse = [](const tracer::Path& p) {
+    return !p.interactions.empty() && p.interactions.back().type == tracer::InteractionType::diffuse;
+  };
+  std::vector<const tracer::Path*> first_tiles, first_hybrid;
+  double chains = 0;
+  for (const auto& p : tiles.paths)
+    if (is_diffuse(p)) first_tiles.push_back(&p);
+  for (const auto& p : hybrid.paths) {
+    const bool diffuse = std::any_of(p.interactions.begin(), p.interactions.end(),
+                                     [](const auto& in) { return in.type == tracer::InteractionType::diffuse; });
+    if (!diffuse) continue;
+    if (p.interactions.size() == 1) {
+      first_hybrid.push_back(&p);
+    } else {
+      EXPECT_TRUE(std::any_of(p.interactions.begin(), p.interactions.end(),
+                              [](const auto& in) { return in.type == tracer::InteractionType::specular; }));
+      chains += std::norm(p.a);
+    }
+  }
+  ASSERT_FALSE(first_tiles.empty());
+  ASSERT_EQ(first_hybrid.size(), first_tiles.size());
+  for (std::size_t k = 0; k < first_tiles.size(); ++k) {
+    EXPECT_EQ(first_hybrid[k]->a, first_tiles[k]->a) << k;
+    EXPECT_EQ(first_hybrid[k]->tau_s, first_tiles[k]->tau_s) << k;
+    EXPECT_EQ(first_hybrid[k]->doppler_hz, first_tiles[k]->doppler_hz) << k;
+  }
+  const double p_rays = powers(rays).diffuse, p_tiles = powers(tiles).diffuse, p_hybrid = powers(hybrid).diffuse;
+  std::printf("wall and ground: rays %.6e, tiles (first order) %.6e, hybrid %.6e (chains %.2f %%, %+.2f %% of rays)\n",
+              p_rays, p_tiles, p_hybrid, 100 * chains / p_hybrid, 100 * (p_hybrid / p_rays - 1));
+  EXPECT_GT(chains, 0.01 * p_hybrid) << "the ground bounces before and after the wall";
+  EXPECT_NEAR(p_hybrid / (p_tiles + chains), 1.0, 1e-12);
+  EXPECT_NEAR(p_hybrid / p_rays, 1.0, 0.03);
+}
+
 // ---------------------------------------------------------------------------
 // 9. Energy partition and a directive lobe.
 

@@ -37,7 +37,11 @@ enum class DiffuseIntegration {
   // Deterministic: static surfaces cut into a tree of tiles
   // (tracer/diffuse.hpp), visibility per node, midpoint rule per pair;
   // converged and bitwise reciprocal, first-order scattering only.
-  tiles
+  tiles,
+  // Both: the tiles for first-order scattering (source -> surface ->
+  // receiver, nothing crossed), the rays for the rest (scattering before or
+  // after reflections, through slabs), which the tiles do not model.
+  hybrid
 };
 
 struct TracerConfig {

@@ -551,6 +551,10 @@ struct DiffuseTargets {
   // -> src: the reverse of what src's rays reach after bouncing).
   std::vector<std::uint32_t> rev;
   bool both_ends = false;
+  // Whether the rays gather first-order scattering too (hybrid: the tiles
+  // integrate it, the rays only what follows or precedes reflections and
+  // slabs).
+  bool first_order = true;
   double bin_s = 1e-7;  // delay bin width
   // Samples below this power (|a|^2) play Russian roulette (0: none).
   double roulette = 0;
@@ -748,7 +752,8 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       const auto mat = scene.material(hit.face);
       const RadioMaterial& material = em.material(mat);
       const double s_coef = scatter ? material.scattering.s : 0.0;  // scatter implies em's rough surfaces
-      const bool can_scatter = s_coef > 0 && st.n < cfg.max_depth;
+      const bool can_scatter =
+          s_coef > 0 && st.n < cfg.max_depth && (diffuse->first_order || st.n > 0 || st.transmissions > 0);
       const bool can_reflect = cfg.specular && st.n < cfg.max_depth;
       const bool can_transmit = cfg.refraction && st.transmissions < cfg.max_transmissions && !em.opaque(mat);
       Plane plane;
@@ -980,7 +985,7 @@ std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Nod
                                   const RadioConfig& radio) {
   validate(cfg, radio);
   std::vector<double> out(receivers.size(), 0.0);
-  if (!cfg.diffuse || cfg.max_depth <= 0 || cfg.diffuse_integration != DiffuseIntegration::rays) return out;
+  if (!cfg.diffuse || cfg.max_depth <= 0 || cfg.diffuse_integration == DiffuseIntegration::tiles) return out;
   if (src >= nodes.size()) throw std::invalid_argument("diffuse_power: source index out of range");
   const Electromagnetics em(scene.material_names(), radio, cfg.materials, cfg.diffuse);
   const double range = max_range_m(cfg, radio);
@@ -1080,9 +1085,9 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   // Diffuse scattering: gathered from the shoot-and-bounce rays' hits
   // (default), or integrated over surface tiles.
   const bool ray_diffuse =
-      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration == DiffuseIntegration::rays;
+      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration != DiffuseIntegration::tiles;
   const bool tile_diffuse =
-      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration == DiffuseIntegration::tiles;
+      cfg.diffuse && cfg.max_depth > 0 && cfg.diffuse_integration != DiffuseIntegration::rays;
   std::vector<DiffuseTargets> targets(ray_diffuse ? n : 0);
   for (std::size_t p = 0; p < pairs.size(); ++p) {
     auto [i, j] = pairs[p];
@@ -1110,6 +1115,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     std::sort(t.rx.begin(), t.rx.end());
     std::sort(t.rev.begin(), t.rev.end());
     t.both_ends = cfg.diffuse_both_ends;
+    t.first_order = !tile_diffuse;
     t.bin_s = 1.0 / radio.bandwidth_hz;
     t.roulette = roulette_power(cfg, radio);
   }
