@@ -507,9 +507,11 @@ void register_all() {
     // diffuse_tile_m.
     benchmark::RegisterBenchmark(("BM_DiffuseAccuracy/" + scene).c_str(), BM_DiffuseAccuracy, scene)
         ->Args({20, 0, 250, 1000})
+        ->Args({20, 0, 500, 1000})
         ->Args({60, 0, 250, 1000})
         ->Args({60, 30, 250, 1000})
         ->Args({60, 60, 250, 1000})
+        ->Args({60, 0, 500, 1000})
         ->Args({60, 125, 500, 2000})
         ->Iterations(1)
         ->Unit(benchmark::kMillisecond)
