@@ -129,7 +129,7 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
   r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("tracer.diffuse_integration"), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("\"tiles\" or \"rays\""), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"tiles\", \"rays\" or \"hybrid\""), std::string::npos) << r.output;
 
   write_text(dir / "c.toml", "[tracer]\ndiffuse_tile_m = 0\n");
   r = run_raysweep(base + nodes + " --config " + (dir / "c.toml").string());

@@ -85,7 +85,7 @@ TEST(ConfigSchema, EnumErrorsSuggestTheClosestValue) {
   EXPECT_EQ(error_of("[tracer]\ncandidates = \"imag\"\n"),
             ":2: tracer.candidates: expected \"image\", \"sbr\" or \"exhaustive\", got \"imag\" (did you mean \"image\"?)");
   EXPECT_EQ(error_of("[tracer]\ndiffuse_integration = \"voxels\"\n"),
-            ":2: tracer.diffuse_integration: expected \"tiles\" or \"rays\", got \"voxels\"");
+            ":2: tracer.diffuse_integration: expected \"tiles\", \"rays\" or \"hybrid\", got \"voxels\"");
   EXPECT_EQ(error_of("[sweep]\noutside = 1\n"), ":2: sweep.outside: expected \"error\" or \"drop\", got 1");
   EXPECT_EQ(error_of("[sinr]\nrat_by_vtype = { bus = \"lte\" }\n"),
             ":2: sinr.rat_by_vtype.bus: expected \"80211p\", \"nrv2x\" or \"none\", got \"lte\"");
