@@ -195,6 +195,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
       stack.push_back(T.tile[t + 1].end);
       stack.push_back(t + 1);
     };
+    View v;  // faces() and complete() set every field a view is read for (tile: here)
     while (!stack.empty()) {
       const std::uint32_t t = stack.back();
       stack.pop_back();
@@ -209,7 +210,6 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
         refine(t);
         continue;
       }
-      View v;
       if (!faces(node, centre, T.tile[t].face, v)) {
         sight.visits.push_back({t, kHidden});
         continue;
@@ -395,6 +395,7 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
   std::vector<Item> stack;
   for (auto it = T.roots.rbegin(); it != T.roots.rend(); ++it) stack.push_back({*it, false, false});
   std::vector<std::pair<std::array<Vec3, 3>, int>> finer;
+  View ca, cb;  // views computed here: view() sets every field add() reads
   while (!stack.empty()) {
     const Item item = stack.back();
     stack.pop_back();
@@ -416,7 +417,6 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     // it, finer where an end is close.
     const Vec3& centre = T.tile[t].centre;
     const std::uint32_t face = T.tile[t].face;
-    View ca, cb;
     const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
     const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
     if (!va) {
