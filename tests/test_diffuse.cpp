@@ -857,6 +857,45 @@ TEST(DiffuseTiles, ReciprocalBitwise) {
   EXPECT_GT(compared, 10u);
 }
 
+TEST(DiffuseTiles, TreeKeptWithTheSceneServesLaterFramesAndOtherMaterials) {
+  // The tile tree is built once per scene, tile size and set of rough
+  // faces, and kept with the TraceScene: later snapshots (other antenna
+  // positions, other materials) on the same scene must give exactly what a
+  // fresh scene gives.
+  const auto build = [] {
+    meshkit::Scene sc;
+    add_ground(sc, 60, "metal");
+    add_box_object(sc, {5, -6, 0}, {6, 6, 8}, "concrete", "wall");
+    return sc;
+  };
+  const auto sc = build();
+  tracer::TraceScene kept(sc);
+  tracer::TracerConfig rough, smooth_ground;
+  for (auto* c : {&rough, &smooth_ground}) {
+    c->max_depth = 1;
+    c->diffraction = false;
+    c->path_threshold_db = 0;
+    c->diffuse_integration = tracer::DiffuseIntegration::tiles;
+  }
+  rough.materials["metal"] = lambertian_override();  // the ground scatters too; concrete always does
+  const std::vector<tracer::Node> first{node("a", {-20, 1, 2}), node("b", {2, -3, 1.5})},
+      second{node("a", {-12, 4, 1.6}), node("b", {3, 2, 2.5})};
+  const auto diffuse = [](const tracer::Snapshot& s) { return powers(s.pairs.at(0)).diffuse; };
+  // The smooth ground first: a tree keyed on the scene alone would then
+  // lack the ground's tiles for the rough runs.
+  const double s2 = diffuse(tracer::trace_snapshot(kept, second, smooth_ground, {}));
+  const double r1 = diffuse(tracer::trace_snapshot(kept, first, rough, {}));
+  const double r2 = diffuse(tracer::trace_snapshot(kept, second, rough, {}));
+  const double r1_again = diffuse(tracer::trace_snapshot(kept, first, rough, {}));
+  tracer::TraceScene fresh_a(sc), fresh_b(sc), fresh_c(sc);
+  EXPECT_EQ(r1, r1_again);
+  EXPECT_EQ(r1, diffuse(tracer::trace_snapshot(fresh_a, first, rough, {})));
+  EXPECT_EQ(s2, diffuse(tracer::trace_snapshot(fresh_b, second, smooth_ground, {})));
+  EXPECT_EQ(r2, diffuse(tracer::trace_snapshot(fresh_c, second, rough, {})));
+  EXPECT_GT(s2, 0) << "the wall scatters";
+  EXPECT_GT(r2, 1.5 * s2) << "the rough ground adds its part";
+}
+
 TEST(Diffuse, OneSourceToManyPointsEqualsTheTracedPairs) {
   // diffuse_power (radio maps: one transmitter, many points) gives each
   // point the diffuse power trace_pairs gives the pair, from the same rays.
