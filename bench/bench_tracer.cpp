@@ -512,6 +512,8 @@ void register_all() {
         ->Args({60, 30, 250, 1000})
         ->Args({60, 60, 250, 1000})
         ->Args({60, 0, 500, 1000})
+        ->Args({60, 0, 500, 2000})
+        ->Args({60, 0, 500, 4000})
         ->Args({60, 125, 500, 2000})
         ->Iterations(1)
         ->Unit(benchmark::kMillisecond)
