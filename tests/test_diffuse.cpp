@@ -452,6 +452,24 @@ TEST(Diffuse, BothEndsEstimatorSamplesThePlateFromTheNearEnd) {
   EXPECT_NE(back, both) << "evaluated from the other end";
 }
 
+// A rough (Lambertian, S = 1) metal wall on a smooth ground, and the
+// settings both tests below trace it with.
+meshkit::Scene wall_on_ground() {
+  meshkit::Scene sc;
+  add_ground(sc, 100);
+  add_box_object(sc, {5, -4, 0}, {6, 4, 5}, "metal", "wall");
+  return sc;
+}
+tracer::TracerConfig wall_on_ground_config() {
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = 1 << 16;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  cfg.materials["metal"] = lambertian_override();
+  return cfg;
+}
+
 TEST(Diffuse, ScatteringBeforeAndAfterAReflectionBothCount) {
   // A rough (Lambertian, S = 1) metal wall on a smooth ground, a high
   // transmitter far from it and a low receiver near it. Scattering after the
@@ -461,16 +479,8 @@ TEST(Diffuse, ScatteringBeforeAndAfterAReflectionBothCount) {
   // both, the pair's diffuse power is the same either way round (a
   // reciprocal integrand: Lambertian on metal, within the rays' noise); the
   // lower end alone gets a different half in each order.
-  meshkit::Scene sc;
-  add_ground(sc, 100);
-  add_box_object(sc, {5, -4, 0}, {6, 4, 5}, "metal", "wall");
-  tracer::TraceScene scene(sc);
-  tracer::TracerConfig cfg;
-  cfg.max_depth = 2;
-  cfg.rays_per_source = 1 << 16;
-  cfg.path_threshold_db = 0;
-  cfg.diffraction = false;
-  cfg.materials["metal"] = lambertian_override();
+  tracer::TraceScene scene(wall_on_ground());
+  auto cfg = wall_on_ground_config();
   const auto a = node("a", {-15, 1, 6}), b = node("b", {3, -1, 1});
   const auto diffuse = [&](bool both, bool reversed) {
     cfg.diffuse_both_ends = both;
@@ -493,16 +503,8 @@ TEST(Diffuse, HybridIsTheTilesFirstOrderPlusTheRaysChains) {
   // the rays: its single-interaction diffuse paths are the tiles' own, bit
   // for bit, every other one holds a reflection, and the whole agrees with
   // the rays' estimate of both (two estimators of one integral).
-  meshkit::Scene sc;
-  add_ground(sc, 100);
-  add_box_object(sc, {5, -4, 0}, {6, 4, 5}, "metal", "wall");
-  tracer::TraceScene scene(sc);
-  tracer::TracerConfig cfg;
-  cfg.max_depth = 2;
-  cfg.rays_per_source = 1 << 16;
-  cfg.path_threshold_db = 0;
-  cfg.diffraction = false;
-  cfg.materials["metal"] = lambertian_override();
+  tracer::TraceScene scene(wall_on_ground());
+  auto cfg = wall_on_ground_config();
   const std::vector<tracer::Node> nodes{node("a", {-15, 1, 6}), node("b", {3, -1, 1})};
   const auto trace = [&](tracer::DiffuseIntegration how) {
     cfg.diffuse_integration = how;
