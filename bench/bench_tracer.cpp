@@ -32,7 +32,8 @@
 //                                ground_order3 (16), vehicle_multi_bounce (32)
 //                                or the diffuse gathering's second end (64), or
 //                                integrate first-order diffuse by tiles and the
-//                                rest by rays (128, "hybrid"). Counters
+//                                rest by rays (128, "hybrid"), with tiles of 2 m
+//                                at ratio 0.5 (256). Counters
 //                                ms_* / tms_* say where the time went
 //                                (SnapshotStats::Timing). Poses come
 //                                from place_on_lanes(net, N, seed 1,
@@ -281,13 +282,15 @@ enum Mechanisms {
   kNoGround3 = 16,
   kNoMultiBounce = 32,
   kOneEnd = 64,
-  kHybrid = 128
+  kHybrid = 128,
+  kCoarseTiles = 256
 };
 std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
   return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search") +
          (m & kNoGround3 ? ", no ground_order3" : "") + (m & kNoMultiBounce ? ", no vehicle_multi_bounce" : "") +
-         (m & kOneEnd ? ", diffuse from one end" : "") + (m & kHybrid ? ", diffuse hybrid" : "");
+         (m & kOneEnd ? ", diffuse from one end" : "") + (m & kHybrid ? ", diffuse hybrid" : "") +
+         (m & kCoarseTiles ? ", tiles 2 m / ratio 0.5" : "");
 }
 
 // The per-model multi-bounce tables are built on first use and kept with the
@@ -311,6 +314,10 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
   if (mech & kSbr) cfg.candidates = tracer::CandidateSearch::sbr;
   if (mech & kTiles) cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
   if (mech & kHybrid) cfg.diffuse_integration = tracer::DiffuseIntegration::hybrid;
+  if (mech & kCoarseTiles) {
+    cfg.diffuse_tile_m = 2;
+    cfg.diffuse_tile_ratio = 0.5;
+  }
   if (mech & kNoGround3) cfg.ground_order3 = false;
   if (mech & kNoMultiBounce) cfg.vehicle_multi_bounce = false;
   if (mech & kOneEnd) cfg.diffuse_both_ends = false;
@@ -502,6 +509,8 @@ void register_all() {
         snap->Args({n, m});
     // What each completeness class costs (issue 14), at 60 vehicles.
     for (int m : {kSpecular | kNoGround3, kSpecular | kNoMultiBounce, kAll | kOneEnd}) snap->Args({60, m});
+    // The hybrid diffuse integration with coarser tiles (a default candidate).
+    snap->Args({60, kAll | kHybrid | kCoarseTiles});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
     // Further arguments x 1000: diffuse_shadow_ratio, diffuse_tile_ratio,
     // diffuse_tile_m.
