@@ -33,7 +33,8 @@
 //                                or the diffuse gathering's second end (64), or
 //                                integrate first-order diffuse by tiles and the
 //                                rest by rays (128, "hybrid"), with tiles of 2 m
-//                                at ratio 0.5 (256). Counters
+//                                at ratio 0.5 (256), or add UTD on the vehicles'
+//                                edges (512). Counters
 //                                ms_* / tms_* say where the time went
 //                                (SnapshotStats::Timing). Poses come
 //                                from place_on_lanes(net, N, seed 1,
@@ -283,14 +284,15 @@ enum Mechanisms {
   kNoMultiBounce = 32,
   kOneEnd = 64,
   kHybrid = 128,
-  kCoarseTiles = 256
+  kCoarseTiles = 256,
+  kVehicleEdges = 512
 };
 std::string mechanisms_name(int m) {
   static const char* names[] = {"specular", "+diffraction", "+diffuse", "+diffraction+diffuse"};
   return std::string(names[m & 3]) + (m & kTiles ? " (tiles)" : "") + (m & kSbr ? ", sbr search" : ", image search") +
          (m & kNoGround3 ? ", no ground_order3" : "") + (m & kNoMultiBounce ? ", no vehicle_multi_bounce" : "") +
          (m & kOneEnd ? ", diffuse from one end" : "") + (m & kHybrid ? ", diffuse hybrid" : "") +
-         (m & kCoarseTiles ? ", tiles 2 m / ratio 0.5" : "");
+         (m & kCoarseTiles ? ", tiles 2 m / ratio 0.5" : "") + (m & kVehicleEdges ? ", vehicle edges" : "");
 }
 
 // The per-model multi-bounce tables are built on first use and kept with the
@@ -318,6 +320,7 @@ void BM_Snapshot(benchmark::State& state, const std::string& name) {
     cfg.diffuse_tile_m = 2;
     cfg.diffuse_tile_ratio = 0.5;
   }
+  if (mech & kVehicleEdges) cfg.vehicle_edge_diffraction = true;
   if (mech & kNoGround3) cfg.ground_order3 = false;
   if (mech & kNoMultiBounce) cfg.vehicle_multi_bounce = false;
   if (mech & kOneEnd) cfg.diffuse_both_ends = false;
@@ -511,6 +514,8 @@ void register_all() {
     for (int m : {kSpecular | kNoGround3, kSpecular | kNoMultiBounce, kAll | kOneEnd}) snap->Args({60, m});
     // The hybrid diffuse integration with coarser tiles (a default candidate).
     snap->Args({60, kAll | kHybrid | kCoarseTiles});
+    // UTD on the vehicles' edges too (item 3).
+    for (int n : {20, 60}) snap->Args({n, kAll | kVehicleEdges});
     snap->Unit(benchmark::kMillisecond)->UseRealTime();
     // Further arguments x 1000: diffuse_shadow_ratio, diffuse_tile_ratio,
     // diffuse_tile_m.

@@ -405,6 +405,12 @@ const Table<TraceSettings>& tracer_table() {
     t.key("vehicle_diffraction_reflected", boolean(), FIELD(tracer.vehicle_diffraction_reflected), "",
           "with vehicle_diffraction: the same on every specular path (each leg against the unfolded path's first "
           "zone); a path only vehicles block is traced through them, attenuated (off: 30-70 % more time)");
+    t.key("vehicle_edge_diffraction", boolean(), FIELD(tracer.vehicle_edge_diffraction), "",
+          "first-order UTD diffraction on the vehicles' edges (roofs, hoods, pillars); a vehicle in the direct "
+          "path's first zone diffracts by its knife edge instead (faded between 1.0 and 0.55 r1)");
+    t.key("vehicle_edge_floor_db", number(), FIELD(tracer.vehicle_edge_floor_db), "dB",
+          "with vehicle_edge_diffraction: vehicle-edge paths this far below the pair's direct free-space power "
+          "are not traced");
     t.key("path_threshold_db", number(), FIELD(tracer.path_threshold_db), "dB",
           "paths this far below a pair's strongest are dropped and counted (<= 0: keep all)");
     t.key("range_margin_db", number(), FIELD(tracer.range_margin_db), "dB",

@@ -340,6 +340,9 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
       s.tracer.vehicle_diffraction_reflected = !base.vehicle_diffraction_reflected;
       grid.push_back(s);
     }
+    s = variant(base.vehicle_edge_diffraction ? "-vehicle edges" : "+vehicle edges");
+    s.tracer.vehicle_edge_diffraction = !base.vehicle_edge_diffraction;
+    grid.push_back(s);
     s = variant(base.refraction ? "-refraction" : "+refraction");
     s.tracer.refraction = !base.refraction;
     grid.push_back(s);

@@ -178,16 +178,16 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
             0u)
       << header;
   // Reference + rays {256, 1024} x depths {1, 2} + diffuse, diffraction,
-  // the vehicles' knife edges (on the direct path, on reflected paths) and
-  // refraction toggled + all mechanisms + the
+  // the vehicles' knife edges (on the direct path, on reflected paths), the
+  // vehicles' UTD edges and refraction toggled + all mechanisms + the
   // multi-bounce table off + the sampled search alone + the coarser LOD +
   // static geometry at 2 m.
-  ASSERT_EQ(rows.size(), 15u);
+  ASSERT_EQ(rows.size(), 16u);
   std::map<std::string, const std::map<std::string, std::string>*> by_label;
   for (const auto& row : rows) by_label[row.at("label")] = &row;
   for (const char* label : {"reference", "r256 d1", "r256 d2", "r1024 d1", "r1024 d2", "r1024 d2 +diffuse",
                             "r1024 d2 +diffraction", "r1024 d2 -vehicle knife edges", "r1024 d2 +reflected knife edges",
-                            "r1024 d2 -refraction",
+                            "r1024 d2 +vehicle edges", "r1024 d2 -refraction",
                             "r1024 d2 all mechanisms", "r1024 d2 -vehicle multi-bounce",
                             "r1024 d2 sbr search", "r1024 d2 lod1",
                             "r1024 d2 static 2m"})
@@ -272,10 +272,10 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
-  // reference, r512 d0, r512 d1, five toggles, all mechanisms and the
+  // reference, r512 d0, r512 d1, six toggles, all mechanisms and the
   // sampled search around r512 d1, static 1m. Not static 0.1m: it changes
   // no object (the default's scene; its row would chart timer noise).
-  ASSERT_EQ(rows.size(), 11u);
+  ASSERT_EQ(rows.size(), 12u);
   EXPECT_NE(r.output.find("static 0.1m leaves every object as it is"), std::string::npos) << r.output;
   EXPECT_EQ(rows[0].at("rays"), "2048");
   EXPECT_EQ(rows[0].at("depth"), "2");

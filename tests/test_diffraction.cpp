@@ -1395,3 +1395,130 @@ TEST(VehicleDiffraction, ReflectedPathsDoNotPassTheAntennasOwnVehicle) {
             << "a ground bounce through the bus's own body (reflected knife edges " << reflected << ")";
   }
 }
+
+// ---------------------------------------------------------------------------
+// UTD on vehicle edges (TracerConfig::vehicle_edge_diffraction): a vehicle's
+// wedges diffract as a building's do, and hand over to the knife edge where
+// the vehicle enters the direct path's first zone.
+
+namespace {
+
+tracer::TracerConfig vehicle_edge_config() {
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 0;
+  cfg.diffuse = false;
+  cfg.diffraction = true;
+  cfg.diffraction_reflection = false;
+  cfg.vehicle_edge_diffraction = true;
+  cfg.vehicle_edge_floor_db = 300;  // every edge
+  cfg.path_threshold_db = 0;
+  return cfg;
+}
+
+// The diffracted paths on object `object`, by delay.
+std::vector<tracer::Path> diffracted_on(const tracer::PairResult& p, std::uint32_t object) {
+  std::vector<tracer::Path> out;
+  for (const auto& path : p.paths)
+    if (path.interactions.size() == 1 && path.interactions[0].type == tracer::InteractionType::diffraction &&
+        path.interactions[0].object == object)
+      out.push_back(path);
+  std::sort(out.begin(), out.end(), [](const tracer::Path& a, const tracer::Path& b) { return a.tau_s < b.tau_s; });
+  return out;
+}
+
+}  // namespace
+
+// A 4 x 1.8 x 1.5 m metal box beside a 40 m link (antennas at 1.2 and
+// 0.9 m): as a vehicle, its corners and top edges give the same diffracted
+// paths (points, delays, complex gains) as the same box built into the
+// static scene, whose edges the static tests check against Kouyoumjian and
+// Pathak; and the same from either end (reciprocity).
+TEST(VehicleEdges, ABoxVehicleDiffractsAsTheSameStaticBox) {
+  const Vec3 lo{18, 2, 0}, hi{22, 3.8, 1.5};
+  meshkit::Scene with_box, without;
+  add_wall_y(with_box, 500, 1, "concrete", "far");
+  add_wall_y(without, 500, 1, "concrete", "far");
+  add_box_object(with_box, lo, hi, "metal", "box");
+  tracer::TraceScene fixed(with_box), moving(without);
+  const auto model = box_vehicle(moving, "car", hi[0] - lo[0], hi[2]);
+  moving.set_vehicles({{"car", model, {hi[0], 0.5 * (lo[1] + hi[1]), 0}, 0, {0, 0, 0}}});
+  std::vector<tracer::Node> nodes{node("tx", {0, 0, 1.2}), node("rx", {40, 0.5, 0.9})};
+  const auto cfg = vehicle_edge_config();
+  auto box_object = [&] {
+    const auto names = fixed.object_names();
+    return static_cast<std::uint32_t>(std::find(names.begin(), names.end(), "box") - names.begin());
+  };
+  const auto ref = diffracted_on(tracer::trace_snapshot(fixed, nodes, cfg, radio()).pairs.at(0), box_object());
+  const auto got =
+      diffracted_on(tracer::trace_snapshot(moving, nodes, cfg, radio()).pairs.at(0), moving.vehicle_object(0));
+  std::swap(nodes[0], nodes[1]);
+  const auto back =
+      diffracted_on(tracer::trace_snapshot(moving, nodes, cfg, radio()).pairs.at(0), moving.vehicle_object(0));
+  ASSERT_GE(ref.size(), 2u) << "the box's near corners at least";
+  ASSERT_EQ(got.size(), ref.size());
+  ASSERT_EQ(back.size(), ref.size());
+  for (std::size_t k = 0; k < ref.size(); ++k) {
+    EXPECT_TRUE(near(got[k].interactions[0].point, ref[k].interactions[0].point, 1e-9)) << k;
+    EXPECT_NEAR(got[k].tau_s, ref[k].tau_s, 1e-15) << k;
+    EXPECT_LT(std::abs(got[k].a - ref[k].a), 1e-9 * std::abs(ref[k].a)) << k << ": " << got[k].a << " vs " << ref[k].a;
+    EXPECT_LT(std::abs(back[k].a - got[k].a), 1e-9 * std::abs(got[k].a)) << k;
+  }
+  // Off, the vehicle has no diffracted path.
+  auto off = cfg;
+  off.vehicle_edge_diffraction = false;
+  EXPECT_TRUE(
+      diffracted_on(tracer::trace_snapshot(moving, nodes, off, radio()).pairs.at(0), moving.vehicle_object(0)).empty());
+}
+
+// A 4 m long, 1.6 m tall car moving sideways into a 100 m link between
+// antennas at 1.5 m, at mid-path (r1 = 1.13 m there): far from the line its
+// edges diffract (UTD), inside 0.55 r1 the knife edge alone attenuates the
+// direct path (no UTD path on it: the two are one field), and in between
+// the field is continuous: per 2 mm it moves by less than a tenth of the
+// free-space field (a UTD path switched on or off there, or a jump of the
+// knife edge, moves it by more; the gain itself has deep but smooth
+// interference nulls, the corners lying near their reflection boundaries).
+TEST(VehicleEdges, HandOverToTheKnifeEdgeIsContinuous) {
+  auto trace_at = [](double y) {
+    meshkit::Scene s;
+    add_wall_y(s, 500, 1, "concrete", "far");
+    tracer::TraceScene scene(s);
+    const auto model = box_vehicle(scene, "car", 4.0, 1.6);
+    scene.set_vehicles({{"car", model, {52, y, 0}, 0, {0, 0, 0}}});
+    auto cfg = vehicle_edge_config();
+    // (No reflections: the car's side echo at this grazing incidence comes
+    // and goes from one centimetre to the next, a known defect of the exact
+    // path's end test at grazing; docs/tracer.md.)
+    cfg.vehicle_edge_floor_db = 40;
+    return tracer::trace_snapshot(scene, {node("tx", {0, 0, 1.5}), node("rx", {100, 0, 1.5})}, cfg, radio())
+        .pairs.at(0);
+  };
+  auto field = [](const tracer::PairResult& p) {
+    std::complex<double> a = 0;
+    for (const auto& path : p.paths) a += path.a;
+    return a;
+  };
+  const double free_space = kLambdaV / (4 * kPi * 100);
+  const auto far = trace_at(3.0);
+  EXPECT_GE(diffracted_on(far, 1).size(), 2u) << "the near corners diffract (object 1: the vehicle)";
+  EXPECT_EQ(far.vehicle_loss_db, 0);
+  const auto crossing = trace_at(0.0);
+  EXPECT_TRUE(diffracted_on(crossing, 1).empty());
+  EXPECT_GT(crossing.vehicle_loss_db, 6);
+  // 2 mm steps from 2.4 m to 1.2 m: the fade (clearance 1.0 to 0.55 r1:
+  // y 2.03 to 1.52 m) and the knife edge's onset; the edge paths' phases
+  // turn by about 0.02 rad per step there.
+  std::complex<double> prev = field(trace_at(2.4));
+  double worst = 0;
+  int faded = 0;
+  for (int mm = 2398; mm >= 1200; mm -= 2) {
+    const auto p = trace_at(mm / 1000.0);
+    const auto a = field(p);
+    worst = std::max(worst, std::abs(a - prev) / free_space);
+    prev = a;
+    faded += !diffracted_on(p, 1).empty() && p.vehicle_loss_db == 0 && mm < 2000;
+  }
+  std::printf("car sliding into the link, vehicle edges on: worst field step %.3f of free space per 2 mm\n", worst);
+  EXPECT_LT(worst, 0.1);
+  EXPECT_GT(faded, 10) << "the fade region is crossed in steps";
+}

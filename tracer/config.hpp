@@ -136,6 +136,17 @@ struct TracerConfig {
   // path); a path only vehicles block is traced through them, attenuated.
   // Off by default: +30-70 % per 60-vehicle snapshot (docs/tracer.md).
   bool vehicle_diffraction_reflected = false;
+  // First-order UTD diffraction on the vehicles' edges (roofs, hoods,
+  // pillars: TraceScene::vehicle_edges), with the static edges' wedge
+  // coefficients. A vehicle the knife edge covers (inside 0.55 r1 of the
+  // direct line) diffracts by its knife edge alone; between 1.0 and 0.55 r1
+  // its UTD paths fade out linearly in clearance, so the two never add.
+  bool vehicle_edge_diffraction = false;
+  // Vehicle-edge paths weaker than this (dB) below the pair's direct
+  // free-space power are not traced (their field is computed first, the
+  // legs' rays only for those above): away from its shadow and reflection
+  // boundaries an edge's field is 25-40 dB below that.
+  double vehicle_edge_floor_db = 40;
   // A pair's paths weaker than its strongest by more than this (dB) are
   // dropped and counted in PairResult::dropped_threshold. <= 0: keep all.
   double path_threshold_db = 60;

@@ -304,6 +304,18 @@ FresnelObstruction FresnelObstacles::between(const Vec3& a, const Vec3& b, doubl
   return f;
 }
 
+double FresnelObstacles::vehicle_clearance(const Vec3& a, const Vec3& b, double lambda, int v) const {
+  const double d = norm(b - a);
+  if (!(d > 0) || v < 0 || static_cast<std::size_t>(v) >= obstacles_.size() || !obstacles_[v].vehicle) return 1;
+  const Vec3 u = (1.0 / d) * (b - a);
+  const Vec3 e1 = any_perpendicular(u), e2 = cross(u, e1);
+  std::vector<NearFace> near;
+  const Obstacle& o = obstacles_[v];
+  if (!near_faces(o, a, u, d, lambda, FresnelZone{0, d}, near)) return 1;
+  return std::min(1.0, obstacle_clearance(o.triangles, o.face_begin, near, a, u, e1, e2, d, lambda, 1.0,
+                                          FresnelZone{0, d}).clearance);
+}
+
 bool FresnelObstacles::near_faces(const Obstacle& o, const Vec3& a, const Vec3& u, double d, double lambda,
                                   const FresnelZone& zone, std::vector<NearFace>& near) const {
   near.clear();

@@ -79,6 +79,9 @@ class FresnelObstacles {
   KnifeEdges vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1,
                                  int skip_b = -1) const;
 
+  // Vehicle v's clearance of the line a -> b alone (h / r1, capped at 1).
+  double vehicle_clearance(const Vec3& a, const Vec3& b, double lambda, int v) const;
+
   // The same along a path of several legs, points[0] the source to
   // points.back() the receiver (the reflection points between): each leg's
   // vehicles against the whole path's first zone (r1 from the distances

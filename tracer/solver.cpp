@@ -345,6 +345,10 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
 
 namespace {
 
+// Vehicle edges shorter than this many wavelengths do not diffract (wheels'
+// facets, mirrors): Keller's stationary point needs room along the edge.
+constexpr double kVehicleEdgeMinWavelengths = 5;
+
 // Angle of `v` around an edge, from t0 towards n0, in [0, 2 pi).
 double edge_angle(const Edge& e, const Vec3& v) {
   double a = std::atan2(dot(v, e.n0), dot(v, e.t0));
@@ -368,7 +372,7 @@ bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const V
 
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
                                              const Node& to, const Edge& edge, std::uint64_t* rays,
-                                             const FaceRef* before, const FaceRef* after) {
+                                             const FaceRef* before, const FaceRef* after, double min_power) {
   // A reflection on a plane before (after) the edge is unfolded: the edge
   // sees the source's (receiver's) image, along straight legs of the same
   // length, so Keller's point, the UTD angles and the spreading are those of
@@ -425,14 +429,20 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
     if (rays) ++*rays;
     return !scene.occluded(a, dir, t0, t1, &f, &edge.face_n);
   };
-  if (before && (!reflected_leg_clear(*before, from.position, p_before, false) ||
-                 !reflected_leg_clear(*before, q, p_before, true)))
-    return std::nullopt;
-  if (after &&
-      (!reflected_leg_clear(*after, p_after, to.position, false) || !reflected_leg_clear(*after, q, p_after, true)))
-    return std::nullopt;
-  if (!before && !leg_clear(scene, edge, from.position, s_in, sp, rays)) return std::nullopt;
-  if (!after && !leg_clear(scene, edge, q, s_out, sd, rays)) return std::nullopt;
+  auto legs_clear = [&] {
+    if (before && (!reflected_leg_clear(*before, from.position, p_before, false) ||
+                   !reflected_leg_clear(*before, q, p_before, true)))
+      return false;
+    if (after &&
+        (!reflected_leg_clear(*after, p_after, to.position, false) || !reflected_leg_clear(*after, q, p_after, true)))
+      return false;
+    if (!before && !leg_clear(scene, edge, from.position, s_in, sp, rays)) return false;
+    if (!after && !leg_clear(scene, edge, q, s_out, sd, rays)) return false;
+    return true;
+  };
+  // With a power floor the field comes first: it does not depend on the
+  // legs, and most weak candidates then need no ray.
+  if (!(min_power > 0) && !legs_clear()) return std::nullopt;
   // Both ends (images) outside the wedge (the callers' edge lists hold
   // that already; here the angles are needed for the coefficients).
   const double phi_i = edge_angle(edge, vt), phi_d = edge_angle(edge, vr);
@@ -480,11 +490,14 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   path.tau_s = length / kSpeedOfLight;
   const double phase = -2 * kPi * std::fmod(length / lambda, 1.0);
   path.a = (lambda / (4 * kPi)) / std::sqrt(sp * sd * length) * field * std::polar(1.0, phase);
+  if (min_power > 0 && (std::norm(path.a) < min_power || !legs_clear())) return std::nullopt;
   path.theta_t = zenith(d_first);
   path.phi_t = azimuth(d_first);
   path.theta_r = zenith(-1.0 * d_last);
   path.phi_r = azimuth(-1.0 * d_last);
-  path.doppler_hz = -(dot(d_first, -1.0 * from.velocity) + dot(d_last, to.velocity)) / lambda;
+  double rate = dot(d_first, -1.0 * from.velocity) + dot(d_last, to.velocity);
+  if (edge.face0.instance > 0) rate += dot(s_in - s_out, scene.velocity(edge.face0));  // a vehicle's edge moves
+  path.doppler_hz = -rate / lambda;
   if (before)
     path.interactions.push_back(
         Interaction{InteractionType::specular, scene.object(*before), scene.material(*before), p_before});
@@ -1387,6 +1400,33 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       }
     });
   }
+  // Vehicle edges: this frame's, placed; per node, those of the other
+  // vehicles it sees from outside their wedge within range (a pair needs
+  // both ends to).
+  std::vector<Edge> vehicle_edges;
+  std::vector<int> vehicle_edge_owner;
+  std::vector<std::vector<std::uint32_t>> vehicle_edges_seen;
+  if (cfg.vehicle_edge_diffraction && n > 1) {
+    for (std::size_t v = 0; v < scene.vehicles().size(); ++v) {
+      scene.vehicle_edges(v, vehicle_edges);
+      vehicle_edge_owner.resize(vehicle_edges.size(), static_cast<int>(v));
+    }
+    vehicle_edges_seen.resize(n);
+    tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
+      if (!is_source[i]) return;
+      const Vec3 p = nodes[i].position;
+      for (std::uint32_t k = 0; k < vehicle_edges.size(); ++k) {
+        if (vehicle_edge_owner[k] == nodes[i].vehicle) continue;
+        const Edge& e = vehicle_edges[k];
+        if (norm(e.b - e.a) < kVehicleEdgeMinWavelengths * em.wavelength()) continue;
+        const Vec3 w = p - e.a;
+        const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
+        if (norm(p - (e.a + z * e.e)) > range) continue;
+        if (edge_angle(e, w - dot(w, e.e) * e.e) > e.n * kPi) continue;
+        vehicle_edges_seen[i].push_back(k);
+      }
+    });
+  }
   snap.stats.time.edges = seconds_since(t_edges);
 
   const double lambda = em.wavelength();
@@ -1517,6 +1557,45 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
           if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], scene.edges()[re.edge], &rays,
                                                    end == 0 ? &face : nullptr, end == 0 ? nullptr : &face))
             res.paths.push_back(std::move(*path));
+        }
+      }
+    }
+    if (!vehicle_edges_seen.empty()) {
+      // Where the direct path's knife edge can take a vehicle (it does
+      // inside 0.55 r1), its UTD paths fade out from 1.0 r1 on: the two
+      // model one field and must not add.
+      const bool knife = cfg.vehicle_diffraction && res.los_class != LosClass::NLOS;
+      const double onset = -kKnifeEdgeOnset / std::sqrt(2.0);
+      int owner = -1;
+      double weight = 1;
+      // The floor: vehicle_edge_floor_db below the direct path's free-space power.
+      const double d = norm(nodes[j].position - nodes[i].position);
+      const double floor = std::pow(lambda / (4 * kPi * d), 2) * std::pow(10.0, -cfg.vehicle_edge_floor_db / 10);
+      const auto &ei = vehicle_edges_seen[i], &ej = vehicle_edges_seen[j];
+      std::size_t x = 0, y = 0;
+      while (x < ei.size() && y < ej.size()) {
+        if (ei[x] < ej[y]) ++x;
+        else if (ej[y] < ei[x]) ++y;
+        else {
+          const std::uint32_t k = ei[x];
+          ++x;
+          ++y;
+          if (vehicle_edge_owner[k] != owner) {
+            owner = vehicle_edge_owner[k];
+            weight = 1;
+            if (knife) {
+              const double c =
+                  obstacles.vehicle_clearance(nodes[i].position, nodes[j].position, lambda, owner);
+              weight = std::clamp((c - onset) / (1 - onset), 0.0, 1.0);
+            }
+          }
+          if (!(weight > 0)) continue;
+          ++res.candidates;
+          if (auto path = compute_diffraction_path(scene, em, nodes[i], nodes[j], vehicle_edges[k], &rays, nullptr,
+                                                   nullptr, floor / (weight * weight))) {
+            path->a *= weight;
+            res.paths.push_back(std::move(*path));
+          }
         }
       }
     }

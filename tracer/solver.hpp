@@ -146,14 +146,17 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
                                  const Node& from, const Node& to, const std::vector<FaceRef>& faces,
                                  bool* over_cap = nullptr, std::uint64_t* rays = nullptr);
 
-// The diffracted path from `from` to `to` over static edge `edge`
-// (Keller's law, both sides visible), or nullopt. With `before` (`after`),
-// a specular reflection on that static face before (after) the edge:
-// reflection-diffraction and diffraction-reflection, unfolded through the
-// face's plane; every leg clear, the reflection point on its face.
+// The diffracted path from `from` to `to` over edge `edge` (a static or a
+// vehicle's: Keller's law, both sides visible), or nullopt. With `before`
+// (`after`), a specular reflection on that static face before (after) the
+// edge: reflection-diffraction and diffraction-reflection, unfolded through
+// the face's plane; every leg clear, the reflection point on its face. A
+// path of power |a|^2 below `min_power` (> 0) is not traced: nullopt, its
+// legs' rays not cast.
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
                                              const Node& to, const Edge& edge, std::uint64_t* rays = nullptr,
-                                             const FaceRef* before = nullptr, const FaceRef* after = nullptr);
+                                             const FaceRef* before = nullptr, const FaceRef* after = nullptr,
+                                             double min_power = 0);
 
 // The LoS class of the direct segment and the objects blocking it.
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,

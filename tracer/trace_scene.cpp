@@ -117,6 +117,7 @@ struct TraceScene::Shape {
   NormalIndex normals;
   Vec3 antenna{0, 0, 0};
   std::vector<std::uint32_t> seen_from_mount;  // vehicle models: faces the antenna mount sees
+  std::vector<Edge> model_edges;               // vehicle models: wedges in the model frame
   // Vehicle models: multi-bounce sequences and, per arrival direction cell
   // (kBounceCells^2 octahedral cells), the ids of those seen there; built
   // on first use (vehicle_bounce_sequences).
@@ -632,6 +633,10 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
     for (std::uint32_t f = 0; f < seen.size(); ++f)
       if (seen[f]) s->seen_from_mount.push_back(f);
   }
+  // Wedges only: a free border of a model's face is a modelling seam (an
+  // open panel, a glass pane set into the body), not a thin screen.
+  for (const Edge& e : extract_edges(*s, {}))
+    if (e.face0 != e.face_n) s->model_edges.push_back(e);
   d.models.push_back(std::move(s));
   return static_cast<std::uint32_t>(d.models.size() - 1);
 }
@@ -893,6 +898,24 @@ std::uint32_t TraceScene::static_object_count() const {
 }
 
 const std::vector<Edge>& TraceScene::edges() const { return impl_->edges; }
+
+void TraceScene::vehicle_edges(std::size_t v, std::vector<Edge>& out) const {
+  const auto& d = *impl_;
+  const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
+  const Vec3& at = vehicles_[v].position;
+  auto turn = [&](const Vec3& x) { return Vec3{c * x[0] - sn * x[1], sn * x[0] + c * x[1], x[2]}; };
+  const auto inst = static_cast<std::uint32_t>(v + 1);
+  for (Edge e : d.models[vehicles_[v].model]->model_edges) {
+    e.a = turn(e.a) + at;
+    e.b = turn(e.b) + at;
+    e.e = turn(e.e);
+    e.t0 = turn(e.t0);
+    e.n0 = turn(e.n0);
+    e.face0.instance = e.face_n.instance = inst;
+    e.object = vehicle_object(v);
+    out.push_back(e);
+  }
+}
 
 meshkit::Bounds TraceScene::static_bounds() const { return impl_->bounds; }
 std::size_t TraceScene::static_triangle_count() const { return impl_->world.triangles.size(); }

@@ -183,6 +183,12 @@ class TraceScene {
   // (collinear pieces merged), and free borders of faces; edges touching a
   // downward-facing face (building floors) and ground borders are left out.
   const std::vector<Edge>& edges() const;
+  // Vehicle v's diffracting edges in the world, appended to `out`: the
+  // model's convex wedges (faces turning by at least 10 degrees, extracted
+  // once per model; free borders and edges touching its underside left
+  // out), placed at v's pose; faces FaceRef{v + 1, .}, object
+  // vehicle_object(v).
+  void vehicle_edges(std::size_t v, std::vector<Edge>& out) const;
 
   meshkit::Bounds static_bounds() const;
   std::size_t static_triangle_count() const;
