@@ -1405,7 +1405,14 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   // both ends to).
   std::vector<Edge> vehicle_edges;
   std::vector<int> vehicle_edge_owner;
-  std::vector<std::vector<std::uint32_t>> vehicle_edges_seen;
+  // A seen edge with the node's coordinate along it and distance from its
+  // line: with the other end's, Keller's point without the path (most
+  // candidates fail there).
+  struct SeenEdge {
+    std::uint32_t k;
+    double z, r;
+  };
+  std::vector<std::vector<SeenEdge>> vehicle_edges_seen;
   if (cfg.vehicle_edge_diffraction && n > 1) {
     for (std::size_t v = 0; v < scene.vehicles().size(); ++v) {
       scene.vehicle_edges(v, vehicle_edges);
@@ -1422,8 +1429,10 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
         const Vec3 w = p - e.a;
         const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
         if (norm(p - (e.a + z * e.e)) > range) continue;
-        if (edge_angle(e, w - dot(w, e.e) * e.e) > e.n * kPi) continue;
-        vehicle_edges_seen[i].push_back(k);
+        const double zk = dot(w, e.e);
+        const Vec3 v = w - zk * e.e;
+        if (edge_angle(e, v) > e.n * kPi) continue;
+        vehicle_edges_seen[i].push_back({k, zk, norm(v)});
       }
     });
   }
@@ -1574,12 +1583,16 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       const auto &ei = vehicle_edges_seen[i], &ej = vehicle_edges_seen[j];
       std::size_t x = 0, y = 0;
       while (x < ei.size() && y < ej.size()) {
-        if (ei[x] < ej[y]) ++x;
-        else if (ej[y] < ei[x]) ++y;
+        if (ei[x].k < ej[y].k) ++x;
+        else if (ej[y].k < ei[x].k) ++y;
         else {
-          const std::uint32_t k = ei[x];
+          const std::uint32_t k = ei[x].k;
+          const SeenEdge &si = ei[x], &sj = ej[y];
           ++x;
           ++y;
+          // Keller's point (as compute_diffraction_path finds it) off the edge.
+          const double zq = (si.z * sj.r + sj.z * si.r) / (si.r + sj.r);
+          if (!(zq >= 0 && zq <= norm(vehicle_edges[k].b - vehicle_edges[k].a))) continue;
           if (vehicle_edge_owner[k] != owner) {
             owner = vehicle_edge_owner[k];
             weight = 1;
