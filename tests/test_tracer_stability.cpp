@@ -1171,6 +1171,9 @@ TEST(TracerStability, NonFiniteInputsAreClearErrors) {
     expect_invalid(trace({good, node("b", {0, 5, 1})}, config(1), r), {"sensitivity"}, "sensitivity");
 
     c = config(1);
+    c.vehicle_edge_floor_db = bad;
+    expect_invalid(trace({good, node("b", {0, 5, 1})}, c, {}), {"vehicle_edge_floor_db"}, "vehicle edge floor");
+    c = config(1);
     c.materials["concrete"].eps_r = bad;
     expect_invalid(trace({good, node("b", {0, 5, 1})}, c, {}), {"concrete", "eps_r"}, "eps_r");
     c = config(1);

@@ -74,6 +74,7 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (!(t.diffuse_roulette_db >= 0)) bad("tracer.diffuse_roulette_db must be >= 0 (300 or more: off)");
   if (!std::isfinite(t.path_threshold_db)) bad("tracer.path_threshold_db must be finite (<= 0 keeps every path)");
   if (std::isnan(t.range_margin_db)) bad("tracer.range_margin_db must be a number");
+  if (!std::isfinite(t.vehicle_edge_floor_db)) bad("tracer.vehicle_edge_floor_db must be finite");
   if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
 }
 
