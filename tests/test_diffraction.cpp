@@ -1470,6 +1470,31 @@ TEST(VehicleEdges, ABoxVehicleDiffractsAsTheSameStaticBox) {
       diffracted_on(tracer::trace_snapshot(moving, nodes, off, radio()).pairs.at(0), moving.vehicle_object(0)).empty());
 }
 
+// A box's twelve edges are wedges (n = 1.5); standing on the ground its four
+// bottom edges are a floor's, as a building's are, and left out; raised
+// 0.3 m (a car body's underside) they diffract too.
+TEST(VehicleEdges, AnUndersideAboveTheGroundDiffracts) {
+  meshkit::Scene none;
+  tracer::TraceScene scene(none);
+  meshkit::Scene standing, raised;
+  add_box_object(standing, {-4, -0.9, 0}, {0, 0.9, 1.5}, "metal", "standing");
+  add_box_object(raised, {-4, -0.9, 0.3}, {0, 0.9, 1.5}, "metal", "raised");
+  const auto a = scene.add_vehicle_model("standing", standing, {-2, 0, 1.55});
+  const auto b = scene.add_vehicle_model("raised", raised, {-2, 0, 1.55});
+  scene.set_vehicles({{"s", a, {0, 0, 0}, 0, {0, 0, 0}}, {"r", b, {0, 10, 0}, 0, {0, 0, 0}}});
+  std::vector<tracer::Edge> on_ground, above;
+  scene.vehicle_edges(0, on_ground);
+  scene.vehicle_edges(1, above);
+  EXPECT_EQ(on_ground.size(), 8u);
+  ASSERT_EQ(above.size(), 12u);
+  int low = 0;
+  for (const auto& e : above) {
+    EXPECT_NEAR(e.n, 1.5, 1e-9);
+    low += std::fabs(e.a[2] - 0.3) < 1e-9 && std::fabs(e.b[2] - 0.3) < 1e-9;
+  }
+  EXPECT_EQ(low, 4);
+}
+
 // A 4 m long, 1.6 m tall car moving sideways into a 100 m link between
 // antennas at 1.5 m, at mid-path (r1 = 1.13 m there): far from the line its
 // edges diffract (UTD), inside 0.55 r1 the knife edge alone attenuates the

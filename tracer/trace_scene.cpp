@@ -356,7 +356,11 @@ namespace {
 // that turn convexly by at least kMinTurn, and free borders of faces.
 constexpr double kMinTurn = 10.0 * kPi / 180.0;
 
-std::vector<Edge> extract_edges(const TraceScene::Shape& s, const std::vector<std::string>& object_names) {
+// `floor_on_ground`: a downward face is a floor only at z = 0 (a vehicle
+// model's underside is a face of its body above the ground, whose edges
+// diffract; a building's floor lies on the ground).
+std::vector<Edge> extract_edges(const TraceScene::Shape& s, const std::vector<std::string>& object_names,
+                                bool floor_on_ground = false) {
   // Vertex ids by position on a 0.1 mm grid.
   std::map<std::array<long long, 3>, std::uint32_t> grid;
   std::vector<std::uint32_t> canon(s.vertices.size());
@@ -380,7 +384,10 @@ std::vector<Edge> extract_edges(const TraceScene::Shape& s, const std::vector<st
       sides[{u, v}].push_back(Side{t, s.tri_face[t], tri[(k + 2) % 3]});
     }
   }
-  auto is_floor = [&](std::uint32_t f) { return s.face_plane[f].normal[2] < -0.9; };
+  auto is_floor = [&](std::uint32_t f) {
+    const Plane& pl = s.face_plane[f];
+    return pl.normal[2] < -0.9 && (!floor_on_ground || pl.offset / pl.normal[2] < 0.02);
+  };
   auto is_ground = [&](std::uint32_t f) {
     const auto o = s.face_object[f];
     return o < object_names.size() && object_names[o] == "ground";
@@ -635,7 +642,7 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
   }
   // Wedges only: a free border of a model's face is a modelling seam (an
   // open panel, a glass pane set into the body), not a thin screen.
-  for (const Edge& e : extract_edges(*s, {}))
+  for (const Edge& e : extract_edges(*s, {}, true))
     if (e.face0 != e.face_n) s->model_edges.push_back(e);
   d.models.push_back(std::move(s));
   return static_cast<std::uint32_t>(d.models.size() - 1);

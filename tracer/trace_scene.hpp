@@ -185,8 +185,8 @@ class TraceScene {
   const std::vector<Edge>& edges() const;
   // Vehicle v's diffracting edges in the world, appended to `out`: the
   // model's convex wedges (faces turning by at least 10 degrees, extracted
-  // once per model; free borders and edges touching its underside left
-  // out), placed at v's pose; faces FaceRef{v + 1, .}, object
+  // once per model; free borders and edges touching a face that lies on
+  // the ground left out, the underside above it kept), placed at v's pose; faces FaceRef{v + 1, .}, object
   // vehicle_object(v).
   void vehicle_edges(std::size_t v, std::vector<Edge>& out) const;
 
