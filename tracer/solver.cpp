@@ -147,11 +147,11 @@ LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std
 
 namespace {
 
-// compute_path; `through_vehicles`: vehicle faces on the way are ignored
-// (the direct path that the knife-edge model attenuates instead).
 // The sine below which a grazing segment's reach onto its face stops growing.
 constexpr double kGrazingSineFloor = 0.01;
 
+// compute_path; `through_vehicles`: vehicle faces on the way are ignored
+// (the direct path that the knife-edge model attenuates instead).
 std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
                                const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
                                std::uint64_t* rays, bool through_vehicles) {
