@@ -1401,7 +1401,7 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       }
     });
   }
-  // Vehicle edges: this frame's, placed; per node, those of the other
+  // Vehicle edges: this frame's, placed (those long enough); per node, those of the other
   // vehicles it sees from outside their wedge within range (a pair needs
   // both ends to).
   std::vector<Edge> vehicle_edges;
@@ -1415,9 +1415,15 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   };
   std::vector<std::vector<SeenEdge>> vehicle_edges_seen;
   if (cfg.vehicle_edge_diffraction && n > 1) {
+    std::vector<Edge> placed;
     for (std::size_t v = 0; v < scene.vehicles().size(); ++v) {
-      scene.vehicle_edges(v, vehicle_edges);
-      vehicle_edge_owner.resize(vehicle_edges.size(), static_cast<int>(v));
+      placed.clear();
+      scene.vehicle_edges(v, placed);
+      for (const Edge& e : placed)
+        if (norm(e.b - e.a) >= kVehicleEdgeMinWavelengths * em.wavelength()) {
+          vehicle_edges.push_back(e);
+          vehicle_edge_owner.push_back(static_cast<int>(v));
+        }
     }
     vehicle_edges_seen.resize(n);
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
@@ -1426,7 +1432,6 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
       for (std::uint32_t k = 0; k < vehicle_edges.size(); ++k) {
         if (vehicle_edge_owner[k] == nodes[i].vehicle) continue;
         const Edge& e = vehicle_edges[k];
-        if (norm(e.b - e.a) < kVehicleEdgeMinWavelengths * em.wavelength()) continue;
         const Vec3 w = p - e.a;
         const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
         if (norm(p - (e.a + z * e.e)) > range) continue;
