@@ -675,6 +675,46 @@ TEST(Diffraction, WedgeCoefficientsAreFiniteOnEveryBoundary) {
     }
 }
 
+// The bound that lets weak candidates skip the coefficients
+// (utd_wedge_bound) holds for every face material, on and near the shadow
+// and reflection boundaries, and is close enough to matter: a bound that
+// were loose by tens of dB would skip nothing.
+TEST(Diffraction, WedgeBoundHoldsEverywhereAndIsTight) {
+  const auto concrete = tracer::radio_material("concrete", kF);
+  const auto glass = tracer::radio_material("glass", kF);
+  const auto metal = tracer::radio_material("metal", kF);
+  const tracer::RadioMaterial* mats[] = {nullptr, &metal, &concrete, &glass};
+  std::vector<double> ratios;
+  double worst = 0;
+  for (double n : {1.0 + 1e-9, 1.25, 1.5, 1.8, 2.0})
+    for (double beta0 : {20 * kDeg, 60 * kDeg, 90 * kDeg})
+      for (double L : {0.05, 1.0, 10.0, 300.0})
+        for (double phi_i = 0.013; phi_i < n * kPi; phi_i += 0.29)
+          for (double phi_d0 : {0.02, kPi + phi_i, kPi - phi_i, (2 * n - 1) * kPi - phi_i, 2.3, 3.9})
+            for (double eps : {0.0, 1e-7, -1e-7, 1e-3, -1e-3, 0.05}) {
+              const double phi_d = phi_d0 + eps;
+              if (phi_d <= 0 || phi_d >= n * kPi) continue;
+              const double bound = tracer::utd_wedge_bound(n, phi_i, phi_d, beta0, L, kK);
+              for (auto m0 : mats)
+                for (auto mn : mats)
+                  for (double keep : {1.0, std::sqrt(1 - 0.16)}) {
+                    const auto d = tracer::utd_wedge(n, phi_i, phi_d, beta0, L, kK, m0, mn, keep, keep);
+                    const double big = std::max(std::abs(d.soft), std::abs(d.hard));
+                    ASSERT_TRUE(std::isfinite(bound));
+                    worst = std::max(worst, big / bound);
+                    ASSERT_LE(big, bound) << "n " << n << " beta0 " << beta0 << " L " << L << " phi' " << phi_i
+                                          << " phi " << phi_d << " materials " << (m0 ? m0->name : "pec") << "/"
+                                          << (mn ? mn->name : "pec");
+                    if (!m0 && !mn && big > 0) ratios.push_back(bound / big);
+                  }
+            }
+  std::sort(ratios.begin(), ratios.end());
+  const double median = ratios[ratios.size() / 2];
+  std::printf("utd_wedge_bound: %zu points, |D| / bound at most %.4f; bound / |D| (perfect conductor) median %.2f\n",
+              ratios.size(), worst, median);
+  EXPECT_LT(median, 2.0);
+}
+
 namespace {
 
 // A 10 x 10 x 20 m box and its vertical corner edge at (10, 10).
@@ -708,6 +748,55 @@ std::vector<Placement> corner_placements() {
 }
 
 }  // namespace
+
+// A floor on the path's power changes nothing but whether it is returned:
+// the path above it is bit for bit the unfloored one, below it nothing.
+TEST(Diffraction, PowerFloorReturnsTheSamePathOrNone) {
+  for (const char* material : {"metal", "concrete"}) {
+    // A kiosk halfway along one receiver's leg from the edge blocks it.
+    const CornerBox bare(material);
+    ASSERT_TRUE(bare.edge);
+    const Vec3 blocked_rx = edge_point(*bare.edge, bare.edge->e[2] > 0 ? 1.5 - bare.edge->a[2] : bare.edge->a[2] - 1.5,
+                                       40, kPi);
+    const Vec3 mid = 0.5 * (blocked_rx + Vec3{10, 10, 1.5});
+    meshkit::Scene s;
+    add_box_object(s, {0, 0, 0}, {10, 10, 20}, material, "block");
+    add_box_object(s, {mid[0] - 0.5, mid[1] - 0.5, 0}, {mid[0] + 0.5, mid[1] + 0.5, 4}, material, "kiosk");
+    tracer::TraceScene scene(s);
+    const tracer::Edge* edge = find_edge(scene, {10, 10, 0}, {10, 10, 20});
+    ASSERT_TRUE(edge);
+    tracer::Electromagnetics em(scene.material_names(), radio(), {});
+    std::size_t kept = 0, floored = 0, blocked = 0;
+    for (double phi_i : {0.15 * kPi, 0.4 * kPi, 0.8 * kPi})
+      for (double phi_d = 0.55 * kPi; phi_d < 1.5 * kPi; phi_d += 0.05 * kPi)
+        for (double z_r : {1.5, 7.0}) {
+          const Vec3 tx = edge_point(*edge, edge->e[2] > 0 ? 1.5 - edge->a[2] : edge->a[2] - 1.5, 12, phi_i);
+          const Vec3 rx = edge_point(*edge, edge->e[2] > 0 ? z_r - edge->a[2] : edge->a[2] - z_r, 40, phi_d);
+          const auto ref = tracer::compute_diffraction_path(scene, em, node("tx", tx), node("rx", rx), *edge);
+          if (!ref) ++blocked;
+          for (double below_db : {-3.0, -0.01, 0.01, 3.0, 40.0}) {
+            const double p = ref ? std::norm(ref->a) : 1e-12;
+            const double floor = p * std::pow(10.0, below_db / 10);
+            const auto got =
+                tracer::compute_diffraction_path(scene, em, node("tx", tx), node("rx", rx), *edge, nullptr,
+                                                 nullptr, nullptr, floor);
+            if (ref && std::norm(ref->a) >= floor) {
+              ASSERT_TRUE(got) << material << " phi " << phi_d << " floor " << below_db;
+              EXPECT_EQ(got->a, ref->a);
+              EXPECT_EQ(got->tau_s, ref->tau_s);
+              EXPECT_EQ(got->doppler_hz, ref->doppler_hz);
+              ++kept;
+            } else {
+              EXPECT_FALSE(got) << material << " phi " << phi_d << " floor " << below_db;
+              floored += ref ? 1 : 0;
+            }
+          }
+        }
+    EXPECT_GT(kept, 20u) << material;
+    EXPECT_GT(floored, 20u) << material;
+    EXPECT_GT(blocked, 0u) << material;
+  }
+}
 
 TEST(Diffraction, MetalBoxCornerPathGain) {
   CornerBox box("metal");

@@ -454,7 +454,26 @@ cdouble cot_f(int sign, double beta, double n, double kL) {
   return utd_transition(kL * a) / std::tan((kPi + sign * beta) / (2 * n));
 }
 
+// A bound on |cot_f|: |F(x)| <= min(1, sqrt(pi x)) (F(x) = 2j sqrt(x) e^{jx}
+// times a Fresnel tail of modulus at most sqrt(pi) / 2, and |F| rises to 1).
+double cot_f_bound(int sign, double beta, double n, double kL) {
+  const double N = std::round((sign * kPi + beta) / (2 * kPi * n));
+  const double eps = kPi + sign * (beta - 2 * kPi * n * N);
+  if (std::fabs(eps) < 1e-5) return n * (std::sqrt(2 * kPi * kL) + 2 * kL * std::fabs(eps));
+  const double a = 2 * std::pow(std::cos((2 * kPi * n * N - beta) / 2), 2);
+  return std::min(1.0, std::sqrt(kPi * kL * a)) / std::fabs(std::tan((kPi + sign * beta) / (2 * n)));
+}
+
 }  // namespace
+
+double utd_wedge_bound(double n, double phi_i, double phi_d, double beta0, double L, double k) {
+  const double kL = k * L;
+  const double pre = 1 / (2 * n * std::sqrt(2 * kPi * k) * std::fabs(std::sin(beta0)));
+  const double dm = phi_d - phi_i, dp = phi_d + phi_i;
+  const double sum = cot_f_bound(+1, dm, n, kL) + cot_f_bound(-1, dm, n, kL) + cot_f_bound(-1, dp, n, kL) +
+                     cot_f_bound(+1, dp, n, kL);
+  return (1 + 1e-9) * pre * sum;  // the margin covers rounding
+}
 
 DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double beta0, double L, double k,
                                   const RadioMaterial* face0, const RadioMaterial* face_n, double keep0,
