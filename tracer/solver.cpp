@@ -822,6 +822,14 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         // points too (both ends' estimator).
         const bool mis = diffuse->both_ends && st.n == 0 && st.transmissions == 0;
         const double cos_in = std::fabs(dot(st.d, plane.normal));
+        // The side the ray arrives from (the lobe's front, ScatteringLobeAt):
+        // a node clearly behind the surface gets nothing, and costs no
+        // square root or lobe (a third of the evaluations on the bench
+        // scenes). Within rounding of the plane it takes the full test.
+        const Vec3 front = dot(st.d, plane.normal) < 0 ? plane.normal : -1.0 * plane.normal;
+        auto behind = [&](const Vec3& w) {
+          return dot(w, front) < -1e-9 * (std::fabs(w[0]) + std::fabs(w[1]) + std::fabs(w[2]));
+        };
         const std::uint32_t hit_object = scene.object(hit.face);
         const auto record = [&](std::uint32_t j, bool reverse, double power, double tau, const Vec3& departure,
                                 const Vec3& arrival, double dl, bool scatter_first = false) {
@@ -879,6 +887,7 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         // Towards node j along ks: this ray's chain, then the scattering.
         const auto gather = [&](std::uint32_t j, bool reverse) {
           const Vec3 w = nodes[j].position - p;
+          if (behind(w)) return;
           const double rs = norm(w);
           if (rs < 1e-6) return;
           const Vec3 ks = (1.0 / rs) * w;
@@ -915,6 +924,8 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
         for (std::size_t q = 0; mis && q < diffuse->rev.size(); ++q) {
           const std::uint32_t j = diffuse->rev[q];
           const Vec3 w = p - nodes[j].position;
+          // Lit from j's side, seen back along this ray: j must be in front too.
+          if (behind(-1.0 * w)) continue;
           const double la = norm(w);
           if (la < 1e-6) continue;
           const Vec3 ki = (1.0 / la) * w;
