@@ -225,7 +225,7 @@ namespace {
 // Receivers in structure-of-arrays form, relative to the source (so the
 // branch-free passes below vectorise and stay exact at city offsets).
 struct Receivers {
-  static constexpr std::size_t kLanes = 4;
+  static constexpr std::size_t kLanes = 8;
   std::vector<double> x, y, z;  // padded to whole lanes with NaN (never marked)
   std::vector<std::int64_t> hit;  // 0 or 1; as wide as a lane, so no packing to bytes
   std::size_t n = 0;
@@ -249,10 +249,12 @@ struct Receivers {
 
 // The kernel of mark_crossings on raw arrays. Branch-free, so it
 // vectorises; x86-64's baseline (SSE2) has no packed double-to-byte
-// conversion, so an AVX2 clone is chosen at load time where the CPU has it.
-// Without FMA contraction the clones compute bitwise the same flags.
+// conversion, so an AVX-512 or AVX2 clone is chosen at load time where the
+// CPU has it (eight or four receivers a vector: the receivers are padded to
+// eight). AVX-512 carries FMA, so contraction is off: every clone computes
+// bitwise the same flags.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target_clones("avx2", "default")))
+__attribute__((target_clones("avx512f", "avx2", "default"), optimize("fp-contract=off")))
 #endif
 unsigned mark_crossings_kernel(const double* __restrict x, const double* __restrict y, const double* __restrict z,
                                std::int64_t* __restrict hit, std::size_t begin, std::size_t n, const double* nrm,
