@@ -437,31 +437,40 @@ cdouble utd_transition(double x) {
 
 namespace {
 
+// One cot * F term's geometry: N, the integer most nearly satisfying
+// 2 pi n N - beta = sign * pi; eps, 0 on the shadow or reflection boundary;
+// a = a^{sign}(beta), F's argument over kL; and the cotangent's angle.
+struct CotTerm {
+  double eps, a, angle;
+};
+CotTerm cot_term(int sign, double beta, double n) {
+  const double N = std::round((sign * kPi + beta) / (2 * kPi * n));
+  return {kPi + sign * (beta - 2 * kPi * n * N), 2 * std::pow(std::cos((2 * kPi * n * N - beta) / 2), 2),
+          (kPi + sign * beta) / (2 * n)};
+}
+// Within this of a boundary the term takes its finite limit.
+constexpr double kBoundaryEps = 1e-5;
+
 // cot((pi + sign*beta)/(2n)) F(kL a^{sign}(beta)), with the finite limit
 // n [sqrt(2 pi kL) sgn(eps) - 2 kL eps e^{j pi/4}] e^{j pi/4} close to the
 // boundary where eps -> 0 (Kouyoumjian and Pathak's eq. for the transition
 // region), so a receiver on a shadow or reflection boundary gets a finite
 // coefficient.
 cdouble cot_f(int sign, double beta, double n, double kL) {
-  // N: the integer most nearly satisfying 2 pi n N - beta = sign * pi.
-  const double N = std::round((sign * kPi + beta) / (2 * kPi * n));
-  const double eps = kPi + sign * (beta - 2 * kPi * n * N);  // 0 on the boundary
-  if (std::fabs(eps) < 1e-5) {
+  const CotTerm t = cot_term(sign, beta, n);
+  if (std::fabs(t.eps) < kBoundaryEps) {
     const cdouble ej = std::polar(1.0, kPi / 4);
-    return n * (std::sqrt(2 * kPi * kL) * (eps >= 0 ? 1.0 : -1.0) - 2 * kL * eps * ej) * ej;
+    return n * (std::sqrt(2 * kPi * kL) * (t.eps >= 0 ? 1.0 : -1.0) - 2 * kL * t.eps * ej) * ej;
   }
-  const double a = 2 * std::pow(std::cos((2 * kPi * n * N - beta) / 2), 2);
-  return utd_transition(kL * a) / std::tan((kPi + sign * beta) / (2 * n));
+  return utd_transition(kL * t.a) / std::tan(t.angle);
 }
 
 // A bound on |cot_f|: |F(x)| <= min(1, sqrt(pi x)) (F(x) = 2j sqrt(x) e^{jx}
 // times a Fresnel tail of modulus at most sqrt(pi) / 2, and |F| rises to 1).
 double cot_f_bound(int sign, double beta, double n, double kL) {
-  const double N = std::round((sign * kPi + beta) / (2 * kPi * n));
-  const double eps = kPi + sign * (beta - 2 * kPi * n * N);
-  if (std::fabs(eps) < 1e-5) return n * (std::sqrt(2 * kPi * kL) + 2 * kL * std::fabs(eps));
-  const double a = 2 * std::pow(std::cos((2 * kPi * n * N - beta) / 2), 2);
-  return std::min(1.0, std::sqrt(kPi * kL * a)) / std::fabs(std::tan((kPi + sign * beta) / (2 * n)));
+  const CotTerm t = cot_term(sign, beta, n);
+  if (std::fabs(t.eps) < kBoundaryEps) return n * (std::sqrt(2 * kPi * kL) + 2 * kL * std::fabs(t.eps));
+  return std::min(1.0, std::sqrt(kPi * kL * t.a)) / std::fabs(std::tan(t.angle));
 }
 
 }  // namespace

@@ -167,8 +167,8 @@ DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double b
                                   double keep_n = 1.0);
 // An upper bound on max(|soft|, |hard|) of utd_wedge for any faces whose
 // (kept) reflection coefficients are at most 1 in magnitude: each cot * F
-// term bounded by |F(x)| <= min(1, sqrt(pi x)), no transition function and
-// no slab coefficients (a third of the cost: weak candidates skip the rest).
+// term bounded by |F(x)| <= min(1, sqrt(pi x)): no transition function and
+// no slab coefficients, so weak candidates can stop before them.
 double utd_wedge_bound(double n, double phi_i, double phi_d, double beta0, double L, double k);
 
 enum class AntennaPattern { isotropic, short_dipole, halfwave_dipole };
