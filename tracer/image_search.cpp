@@ -132,6 +132,17 @@ ImageFaces image_faces(const TraceScene& scene) {
     t.vehicle_begin.push_back(static_cast<std::uint32_t>(t.refs.size()));
   }
   for (std::size_t v = 0; v < scene.vehicles().size(); ++v) t.vehicle_spheres.push_back(scene.vehicle_sphere(v));
+  auto& bs = t.beam_spheres;
+  auto push_sphere = [&](const TraceScene::Sphere& sp, double tol) {
+    bs.x.push_back(sp.centre[0]);
+    bs.y.push_back(sp.centre[1]);
+    bs.z.push_back(sp.centre[2]);
+    bs.r.push_back(sp.radius);
+    bs.tol.push_back(tol);
+  };
+  for (std::size_t f = t.vehicle_begin.front(); f < t.refs.size(); ++f) push_sphere(t.spheres[f], t.tol[f]);
+  t.beam_vehicles_begin = static_cast<std::uint32_t>(bs.x.size());
+  for (const auto& sv : t.vehicle_spheres) push_sphere(sv, 0);
   for (std::uint32_t f = 0; f < t.static_count; ++f)
     if (scene.is_ground(f)) t.ground.push_back(f);
   for (std::uint32_t f = 0; f < t.static_count; ++f)
@@ -352,6 +363,37 @@ bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, dou
   const double r2 = (sphere.radius + tol) * (sphere.radius + tol);
   return mark_crossings_kernel(rx.x.data(), rx.y.data(), rx.z.data(), scratch.hit.data(), begin, rx.size(),
                                pl.normal.data(), plane_offset_rel, ds, img.data(), centre_rel.data(), r2) != 0;
+}
+
+// Which spheres k < n (columns x..tol) meet a beam: keep[k] = 1 when the
+// sphere is not wholly behind the plane (p2n, p2off) seen from `side` and
+// not wholly outside the pyramid of inward unit normals `planes` (np of
+// them, x y z each) through `apex`, padded by spread_per_m per metre from
+// the apex, 1e-6 per metre and the sphere's tol: beam_pair_candidates'
+// scalar tests, sphere by sphere, over whole vectors of spheres. Contraction
+// off in every clone, so the flags are bitwise the scalar tests'.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx512f", "avx2", "default"), optimize("fp-contract=off")))
+#endif
+void beam_keep_kernel(const double* __restrict x, const double* __restrict y, const double* __restrict z,
+                      const double* __restrict r, const double* __restrict tol, std::size_t n, const double* planes,
+                      std::size_t np, const double* apex, double spread_per_m, const double* p2n, double p2off,
+                      double side, double* __restrict wx, double* __restrict wy, double* __restrict wz,
+                      double* __restrict lim, std::int64_t* __restrict keep) {
+  const double ax = apex[0], ay = apex[1], az = apex[2];
+  const double nx = p2n[0], ny = p2n[1], nz = p2n[2];
+  for (std::size_t k = 0; k < n; ++k) {
+    wx[k] = x[k] - ax, wy[k] = y[k] - ay, wz[k] = z[k] - az;
+    const double d = std::sqrt(wx[k] * wx[k] + wy[k] * wy[k] + wz[k] * wz[k]);
+    const double pad = spread_per_m * (d + r[k]) + tol[k] + 1e-6 * (d + r[k]);
+    lim[k] = -(r[k] + pad);
+    keep[k] = static_cast<std::int64_t>(!(side * (nx * x[k] + ny * y[k] + nz * z[k] - p2off) + r[k] <= 0));
+  }
+  for (std::size_t p = 0; p < np; ++p) {
+    const double px = planes[3 * p], py = planes[3 * p + 1], pz = planes[3 * p + 2];
+    for (std::size_t k = 0; k < n; ++k)
+      keep[k] &= static_cast<std::int64_t>(!(px * wx[k] + py * wy[k] + pz * wz[k] < lim[k]));
+  }
 }
 
 }  // namespace
@@ -936,7 +978,9 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
   };
   auto is_ground = [&](std::uint32_t f) { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); };
   std::vector<Vec3> pyramid, mirrored;
-  std::vector<std::uint32_t> tree_stack, third_faces;
+  std::vector<std::uint32_t> tree_stack, third_faces, kept_vehicles;
+  std::vector<double> plane_cols, wx, wy, wz, lim;
+  std::vector<std::int64_t> keep;
   for (const BeamPair& bp : beam_pairs) {
     // (Not a structured binding: clang before 16 cannot capture those.)
     const std::uint32_t f1 = bp.f1, f2 = bp.f2;
@@ -1021,11 +1065,30 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
     // Vehicles in the beam: each of their faces in it (no normal index:
     // the receivers riding the vehicle included). Not after a vehicle face
     // (two cars after a wall: +17 % of a 120-vehicle demo snapshot, and no
-    // such path missing on the snapshots measured).
-    for (std::uint32_t v = 0; f2_static && v < faces.vehicle_spheres.size(); ++v) {
-      if (behind(faces.vehicle_spheres[v]) || outside(faces.vehicle_spheres[v], 0)) continue;
-      for (std::uint32_t f = faces.vehicle_begin[v]; f < faces.vehicle_begin[v + 1]; ++f)
-        if (f != f2 && !behind(faces.spheres[f]) && !outside(faces.spheres[f], faces.tol[f])) third_faces.push_back(f);
+    // such path missing on the snapshots measured). The same tests as
+    // behind() and outside() (not narrow: f2 is static), vectorised over
+    // the vehicles, then over each kept vehicle's faces.
+    if (f2_static && !faces.vehicle_spheres.empty()) {
+      plane_cols.clear();
+      for (const auto& nrm : pyramid) plane_cols.insert(plane_cols.end(), nrm.begin(), nrm.end());
+      auto keep_spheres = [&](std::uint32_t begin, std::uint32_t count) {
+        const auto& c = faces.beam_spheres;
+        if (keep.size() < count) keep.resize(count), wx.resize(count), wy.resize(count), wz.resize(count), lim.resize(count);
+        beam_keep_kernel(c.x.data() + begin, c.y.data() + begin, c.z.data() + begin, c.r.data() + begin,
+                         c.tol.data() + begin, count, plane_cols.data(), pyramid.size(), img[2].data(), spread_per_m,
+                         p2.normal.data(), p2.offset, side, wx.data(), wy.data(), wz.data(), lim.data(), keep.data());
+      };
+      const auto vehicles = static_cast<std::uint32_t>(faces.vehicle_spheres.size());
+      keep_spheres(faces.beam_vehicles_begin, vehicles);
+      kept_vehicles.clear();
+      for (std::uint32_t v = 0; v < vehicles; ++v)
+        if (keep[v]) kept_vehicles.push_back(v);
+      for (const std::uint32_t v : kept_vehicles) {
+        const std::uint32_t b = faces.vehicle_begin[v], e = faces.vehicle_begin[v + 1];
+        keep_spheres(b - faces.vehicle_begin[0], e - b);
+        for (std::uint32_t f = b; f < e; ++f)
+          if (f != f2 && keep[f - b]) third_faces.push_back(f);
+      }
     }
     for (const std::uint32_t f3 : third_faces) {
       // The third face's image, the receivers seen through it (a vectorised

@@ -61,6 +61,13 @@ struct ImageFaces {
   std::uint32_t static_count = 0;
   std::vector<std::uint32_t> vehicle_begin;  // first face of vehicle v in refs (size vehicles + 1)
   std::vector<TraceScene::Sphere> vehicle_spheres;
+  // The vehicles' faces' spheres and tolerances (from vehicle_begin[0]), then
+  // the vehicles' own spheres (tolerance 0), in structure-of-arrays form for
+  // the beams' vectorised tests; padded with NaN to whole vectors.
+  struct SphereColumns {
+    std::vector<double> x, y, z, r, tol;
+  } beam_spheres;
+  std::uint32_t beam_vehicles_begin = 0;  // where the vehicles' spheres start in beam_spheres
   std::vector<std::uint32_t> ground;         // static faces that are ground (TraceScene::is_ground)
   // Static faces of vehicle size or less (bounding radius under kSmallFace:
   // a kerb-side box, a bus shelter's side): shoot and bounce's rays pass
