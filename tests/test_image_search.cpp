@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "tracer/image_search.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;
@@ -549,3 +550,62 @@ TEST(ImageSearch, WallCarAndGroundAtOrder3MatchExhaustive) {
   EXPECT_GE(without.missed, 2u);  // the rays alone miss some
 }
 
+
+// The wall-car classes (W-V, W-G-V, W-V-G) come from either of two exact
+// enumerations, chosen per combination by cost: an image per vehicle face
+// and kind with a vectorised pass over the receivers, or a normal-table
+// lookup per receiver. Both must propose exactly the same candidates (each
+// decided by the same exact test), on streets with cars, trucks, a
+// building row and antennas on and off the vehicles, for every (wall,
+// vehicle) combination.
+TEST(ImageSearch, BeamVehicleMethodsProposeTheSameCandidates) {
+  std::size_t total = 0, order3 = 0, own = 0;
+  for (unsigned seed = 1; seed <= 3; ++seed) {
+    VehicleStreet st = vehicle_street(seed, 8, 50);
+    std::mt19937 rng(700 + seed);
+    auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+    for (int k = 0; k < 6; ++k) st.nodes.push_back(node("p" + std::to_string(k), {u(-50, 50), u(-10, 10), u(1.2, 3)}));
+    const auto& scene = *st.scene;
+    const auto faces = tracer::image_faces(scene);
+    std::vector<tracer::BeamVehicle> combos;
+    for (std::uint32_t f = 0; f < faces.static_count; ++f)
+      if (!scene.is_ground(f))
+        for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) combos.push_back({f, v});
+    auto sorted = [](std::vector<tracer::ImageCandidate> c) {
+      std::sort(c.begin(), c.end(), [](const auto& a, const auto& b) {
+        return a.rx != b.rx ? a.rx < b.rx : a.faces < b.faces;
+      });
+      return c;
+    };
+    for (std::uint32_t src = 0; src < st.nodes.size(); ++src) {
+      std::vector<std::uint32_t> receivers;
+      for (std::uint32_t r = 0; r < st.nodes.size(); ++r)
+        if (r != src) receivers.push_back(r);
+      std::vector<tracer::ImageCandidate> by_passes, by_lookups, cheaper;
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_passes, nullptr, true,
+                                      tracer::BeamVehicleMethod::passes);
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_lookups, nullptr, true,
+                                      tracer::BeamVehicleMethod::lookups);
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, cheaper, nullptr, true);
+      by_passes = sorted(by_passes);
+      by_lookups = sorted(by_lookups);
+      cheaper = sorted(cheaper);
+      ASSERT_EQ(by_passes.size(), by_lookups.size()) << "seed " << seed << " source " << src;
+      for (std::size_t k = 0; k < by_passes.size(); ++k) {
+        EXPECT_EQ(by_passes[k].rx, by_lookups[k].rx) << "seed " << seed << " source " << src;
+        EXPECT_TRUE(by_passes[k].faces == by_lookups[k].faces) << "seed " << seed << " source " << src;
+      }
+      ASSERT_EQ(cheaper.size(), by_passes.size());
+      for (std::size_t k = 0; k < cheaper.size(); ++k) EXPECT_TRUE(cheaper[k].faces == by_passes[k].faces);
+      total += by_passes.size();
+      for (const auto& c : by_passes) {
+        order3 += c.faces.size() == 3;
+        own += st.nodes[c.rx].vehicle >= 0 && c.faces.back().instance == static_cast<std::uint32_t>(st.nodes[c.rx].vehicle) + 1;
+      }
+    }
+  }
+  std::printf("wall-car candidates: %zu (%zu with the ground, %zu off the receiver's own vehicle)\n", total, order3, own);
+  EXPECT_GT(total, 100u);
+  EXPECT_GT(order3, 20u);
+  EXPECT_GT(own, 0u);
+}

@@ -757,7 +757,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats, bool with_ground) {
+                             ImageSearchStats* stats, bool with_ground, BeamVehicleMethod method) {
   if (combos.empty() || receivers.empty()) return;
   ImageSearchStats local;
   const Vec3 xs = nodes[src].position;
@@ -766,24 +766,36 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     const double rr = faces.spheres[f].radius + faces.tol[f];
     return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
   };
-  // Each receiver's images in the ground faces (for the ground last; the
-  // vector is empty without `with_ground`).
-  struct Mirrored {
-    std::uint32_t k;  // index into faces.ground
-    Vec3 x;
-  };
-  std::vector<std::vector<Mirrored>> mirrored(with_ground ? receivers.size() : 0);
-  for (std::size_t r = 0; r < mirrored.size(); ++r)
-    for (std::uint32_t k = 0; k < faces.ground.size(); ++k) {
-      const Plane& pg = faces.planes[faces.ground[k]];
-      const Vec3 xr = nodes[receivers[r]].position;
+  // The receivers relative to the source, and their images in each ground
+  // face (for the ground last; none without `with_ground`; NaN, never
+  // marked, for a receiver on the ground's plane).
+  Receivers rx, scratch;
+  for (auto r : receivers) rx.push(nodes[r].position - xs);
+  scratch.n = rx.size();
+  scratch.pad();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<Receivers> mirrored(with_ground ? faces.ground.size() : 0);
+  std::vector<std::vector<Vec3>> mirrored_at(mirrored.size());  // the same in world coordinates
+  for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+    const Plane& pg = faces.planes[faces.ground[k]];
+    for (auto r : receivers) {
+      const Vec3 xr = nodes[r].position;
       const double d = dot(pg.normal, xr) - pg.offset;
-      if (d != 0) mirrored[r].push_back({k, xr - (2 * d) * pg.normal});
+      mirrored_at[k].push_back(d != 0 ? xr - (2 * d) * pg.normal : Vec3{nan, nan, nan});
+      mirrored[k].push(mirrored_at[k].back() - xs);
     }
+  }
+  // A receiver riding vehicle v takes its echoes off v from the faces its
+  // mount sees (a normal bound or image pass is void inside the vehicle).
+  auto mount_of = [&](std::uint32_t v, std::uint32_t r) -> const std::vector<std::uint32_t>* {
+    return static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, nodes[r].position) : nullptr;
+  };
   std::vector<Vec3> pyramid, pyramid_g;
   std::vector<char> between(faces.ground.size());
   std::vector<Vec3> i1g(faces.ground.size());
-  static const std::vector<Mirrored> no_mirrored;
+  std::vector<double> plane_cols, wx, wy, wz, lim;
+  std::vector<std::int64_t> keep_direct;
+  std::vector<std::vector<std::int64_t>> keep_between(faces.ground.size());
   enum class Kind { echo, between, last };
   struct Variant {
     Kind kind;
@@ -811,37 +823,36 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     outline_pyramid(faces, f1, i1, pyramid);
     const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
     const bool direct = !outside_pyramid(pyramid, i1, sv, 0, spread_per_m);
-    // The reflection on vehicle face f for one variant, then the way back
-    // through the ground (if any) to f1; appended when every point lies on
-    // its face.
-    auto try_face = [&](const Variant& w, std::size_t f, std::uint32_t r) {
+    // The reflection on vehicle face f from `from` towards `to`, then the
+    // way back through the ground (if any) to f1; appended when every point
+    // lies on its face.
+    auto try_face = [&](Kind kind, std::uint32_t k, const Vec3& from, const Vec3& to, std::size_t f, std::uint32_t r) {
       const Plane& pl = faces.planes[f];
-      const double df = dot(pl.normal, w.from) - pl.offset, d = dot(pl.normal, w.to) - pl.offset;
+      const double df = dot(pl.normal, from) - pl.offset, d = dot(pl.normal, to) - pl.offset;
       if (!(df * d > 0)) return;
-      ++local.tests;
-      const Vec3 q = crossing(w.from - (2 * df) * pl.normal, -df, w.to, d);
+      const Vec3 q = crossing(from - (2 * df) * pl.normal, -df, to, d);
       if (!on_face(f, q)) return;
       Vec3 back = q;  // the point the line from I1 must reach through f1
-      const std::uint32_t g = w.kind == Kind::echo ? 0 : faces.ground[w.k];
-      if (w.kind != Kind::echo) {
+      const std::uint32_t g = kind == Kind::echo ? 0 : faces.ground[k];
+      if (kind != Kind::echo) {
         const Plane& pg = faces.planes[g];
         const double dq = dot(pg.normal, q) - pg.offset;
-        if (w.kind == Kind::between) {
+        if (kind == Kind::between) {
           // From I1's image (below the ground, I1 above) to q above it.
-          const double dg = dot(pg.normal, w.from) - pg.offset;
+          const double dg = dot(pg.normal, from) - pg.offset;
           if (!(dg * dq < 0)) return;
-          back = crossing(w.from, dg, q, dq);
+          back = crossing(from, dg, q, dq);
           if (!on_face(g, back)) return;
         } else {
           // From q down to the ground, then up to the receiver.
           const Vec3 xr = nodes[r].position;
           const double dr = dot(pg.normal, xr) - pg.offset;
-          if (!(dq * dr > 0) || !on_face(g, crossing(w.to, -dr, q, dq))) return;
+          if (!(dq * dr > 0) || !on_face(g, crossing(to, -dr, q, dq))) return;
         }
       }
       const double d1 = dot(p1.normal, back) - p1.offset;
       if (!(ds * d1 > 0) || !on_face(f1, crossing(i1, -ds, back, d1))) return;
-      switch (w.kind) {
+      switch (kind) {
         case Kind::echo: out.push_back({r, {faces.refs[f1], faces.refs[f]}}); break;
         case Kind::between: out.push_back({r, {faces.refs[f1], faces.refs[g], faces.refs[f]}}); break;
         case Kind::last: out.push_back({r, {faces.refs[f1], faces.refs[f], faces.refs[g]}}); break;
@@ -867,26 +878,102 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
         const Plane& pg = faces.planes[faces.ground[k]];
         i1g[k] = i1 - (2 * (dot(pg.normal, i1) - pg.offset)) * pg.normal;
       }
+    // Per face of the vehicle and kind of path, its image and one
+    // vectorised pass over the receivers (or their images in the ground),
+    // then the exact test for those marked: the wall's echo off the car
+    // (W-V), the ground between (W-G-V) and the ground last (W-V-G).
+    auto pass = [&](Kind kind, std::uint32_t k, const Vec3& from, const Receivers& to, std::size_t f) {
+      const Plane& pl = faces.planes[f];
+      const double df = dot(pl.normal, from) - pl.offset;
+      if (df == 0) return;
+      const auto& sf = faces.spheres[f];
+      local.tests += to.size();
+      // The pass is a necessary condition only (try_face decides), so its
+      // sphere is padded against rounding.
+      if (!mark_crossings(to, 0, pl, pl.offset - dot(pl.normal, xs), df, from - (2 * df) * pl.normal - xs, sf,
+                          sf.centre - xs, faces.tol[f] + 1e-9 * (sf.radius + 1), scratch))
+        return;
+      for (std::size_t ri = 0; ri < to.size(); ++ri) {
+        if (!scratch.hit[ri]) continue;
+        const std::uint32_t r = receivers[ri];
+        if (kind == Kind::echo && mount_of(v, r)) continue;
+        try_face(kind, k, from, kind == Kind::last ? mirrored_at[k][ri] : nodes[r].position, f, r);
+      }
+    };
+    // Only the faces in the beam (the pyramid through f1, or its image in
+    // the ground) can hold the reflection point.
+    const std::uint32_t fb = faces.vehicle_begin[v], fe = faces.vehicle_begin[v + 1], nf = fe - fb;
+    auto in_beam = [&](const std::vector<Vec3>& planes, const Vec3& apex, std::vector<std::int64_t>& keep) {
+      const auto& c = faces.beam_spheres;
+      const std::uint32_t b = fb - faces.vehicle_begin[0];
+      plane_cols.clear();
+      for (const auto& nrm : planes) plane_cols.insert(plane_cols.end(), nrm.begin(), nrm.end());
+      if (keep.size() < nf) keep.resize(nf), wx.resize(nf), wy.resize(nf), wz.resize(nf), lim.resize(nf);
+      // (No plane to be behind: a zero normal keeps every face.)
+      const double no_plane[3] = {0, 0, 0};
+      beam_keep_kernel(c.x.data() + b, c.y.data() + b, c.z.data() + b, c.r.data() + b, c.tol.data() + b, nf,
+                       plane_cols.data(), planes.size(), apex.data(), spread_per_m, no_plane, -1, 1, wx.data(),
+                       wy.data(), wz.data(), lim.data(), keep.data());
+    };
+    if (direct) in_beam(pyramid, i1, keep_direct);
+    for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+      if (!between[k]) continue;
+      const Plane& pg = faces.planes[faces.ground[k]];
+      pyramid_g.clear();
+      for (const auto& nrm : pyramid) pyramid_g.push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
+      in_beam(pyramid_g, i1g[k], keep_between[k]);
+    }
+    // Two exact ways to the same candidates (try_face decides each): per
+    // face and kind an image and a vectorised pass over the receivers, or
+    // per receiver a lookup in the vehicle's normal table around the
+    // union of its kinds' normal windows. The passes cost faces x kinds x
+    // receivers / 8, the lookups receivers x (10 + 8 kinds) in the same
+    // unit (measured: equal on the ring road, whose one ground plane makes
+    // two kinds; on the demo city's ground tiles the lookups' union
+    // window holds most faces and the passes take half the time).
+    std::uint64_t passes = 0;
+    int kinds = direct ? 1 : 0;
+    for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+      const bool last = direct && faces.ground[k] != f1;
+      kinds += (between[k] ? 1 : 0) + (last ? 1 : 0);
+      for (std::uint32_t i = 0; i < nf; ++i)
+        passes += (between[k] && keep_between[k][i] ? 1 : 0) + (last && keep_direct[i] ? 1 : 0);
+    }
+    for (std::uint32_t i = 0; direct && i < nf; ++i) passes += keep_direct[i] ? 1 : 0;
+    const std::uint64_t lanes = (receivers.size() + Receivers::kLanes - 1) / Receivers::kLanes;
+    const bool by_passes = method == BeamVehicleMethod::cheaper
+                               ? passes * lanes < receivers.size() * (10 + 8 * static_cast<std::uint64_t>(kinds))
+                               : method == BeamVehicleMethod::passes;
+    if (by_passes) {
+      for (std::uint32_t f = fb; f < fe; ++f) {
+        const bool in_direct = direct && keep_direct[f - fb];
+        if (in_direct) pass(Kind::echo, 0, i1, rx, f);
+        for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+          if (between[k] && keep_between[k][f - fb]) pass(Kind::between, k, i1g[k], rx, f);
+          if (in_direct && faces.ground[k] != f1) pass(Kind::last, k, i1, mirrored[k], f);
+        }
+      }
+      for (std::size_t ri = 0; direct && ri < receivers.size(); ++ri)
+        if (const auto* mount = mount_of(v, receivers[ri]))
+          for (auto lf : *mount) try_face(Kind::echo, 0, i1, nodes[receivers[ri]].position, fb + lf, receivers[ri]);
+      continue;
+    }
     for (std::size_t ri = 0; ri < receivers.size(); ++ri) {
       const std::uint32_t r = receivers[ri];
       const Vec3 xr = nodes[r].position;
-      // The wall's echo off the car (W-V), the ground between (W-G-V) and
-      // the ground last (W-V-G, towards the receiver's image in the
-      // ground): each its own normal window, all from one table lookup
-      // around the first window wide enough to hold the others (the
-      // lookup, not the face tests, is what these cost).
+      // Each kind its own normal window, all from one table lookup around
+      // the first window wide enough to hold the others (the lookup, not
+      // the face tests, is what these cost).
       variants.clear();
-      const std::vector<std::uint32_t>* mount =
-          static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, xr) : nullptr;
+      const auto* mount = mount_of(v, r);
       if (direct && !mount) variants.push_back({Kind::echo, 0, i1, xr});
-      for (const auto& [k, xm] : with_ground ? mirrored[ri] : no_mirrored) {
+      for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
         if (between[k]) variants.push_back({Kind::between, k, i1g[k], xr});
-        if (direct && faces.ground[k] != f1) variants.push_back({Kind::last, k, i1, xm});
+        if (direct && faces.ground[k] != f1 && !std::isnan(mirrored_at[k][ri][0]))
+          variants.push_back({Kind::last, k, i1, mirrored_at[k][ri]});
       }
-      // The receiver's own vehicle: the faces its mount sees (the normal
-      // bound is void inside the sphere).
       if (direct && mount)
-        for (auto lf : *mount) try_face(Variant{Kind::echo, 0, i1, xr}, faces.vehicle_begin[v] + lf, r);
+        for (auto lf : *mount) try_face(Kind::echo, 0, i1, xr, fb + lf, r);
       if (variants.empty()) continue;
       bool all = false;
       for (auto& w : variants) all |= !normal_window(sv, w.from, w.to, w.bisector, w.cos_delta, w.sin_delta);
@@ -902,10 +989,13 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
         }
       }
       for (auto lf : scene.vehicle_faces_near_normal(v, variants[0].bisector, angle)) {
-        const std::size_t f = faces.vehicle_begin[v] + lf;
+        const std::size_t f = fb + lf;
         const Vec3& n = faces.planes[f].normal;
         for (const auto& w : variants)
-          if (w.cos_delta <= -1 || std::fabs(dot(n, w.bisector)) >= w.cos_delta - 1e-12) try_face(w, f, r);
+          if (w.cos_delta <= -1 || std::fabs(dot(n, w.bisector)) >= w.cos_delta - 1e-12) {
+            ++local.tests;
+            try_face(w.kind, w.k, w.from, w.to, f, r);
+          }
       }
     }
   }

@@ -137,10 +137,17 @@ struct BeamVehicle {
 // `with_ground` also the order-3 sequences (f, ground, v) and (f, v,
 // ground) of the same combinations: a horizontal ground bends f's beam up
 // or down without moving it sideways.
+// Two exact enumerations give the same candidates: per vehicle face and
+// kind of path, an image and a vectorised pass over the receivers
+// (`passes`), or per receiver a lookup in the vehicle's normal table
+// (`lookups`); `cheaper` takes, per combination, the one its cost estimate
+// favours.
+enum class BeamVehicleMethod { cheaper, passes, lookups };
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                              std::uint32_t src, const std::vector<std::uint32_t>& receivers,
                              const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats = nullptr, bool with_ground = false);
+                             ImageSearchStats* stats = nullptr, bool with_ground = false,
+                             BeamVehicleMethod method = BeamVehicleMethod::cheaper);
 
 // The combinations (small static face, vehicle) that can exist from `src`,
 // exactly: every vehicle in the cone from the source's image through the
