@@ -23,7 +23,7 @@
 //                                the ray rate the solver can reach.
 //   BM_Snapshot/<scene>/N        trace_snapshot for N vehicles (N = 5 ... 120)
 //                                with the default TracerConfig (depth 3, LoS +
-//                                specular + refraction, 4096 rays per source)
+//                                specular + refraction, 6144 rays per source)
 //                                and default RadioConfig (5.9 GHz); the second
 //                                argument's bits add diffraction (1) and
 //                                diffuse scattering (2), swap the exact image

@@ -147,6 +147,19 @@ VehicleStreet vehicle_street(unsigned seed, int count, double half_length) {
   return st;
 }
 
+// vehicle_street with `antennas` more antennas at 1.2 - 3 m along it (drawn
+// from `antenna_seed`), after the vehicles' own or instead of them.
+VehicleStreet street_with_antennas(unsigned seed, int vehicles, double half_length, unsigned antenna_seed,
+                                   int antennas, bool keep_vehicle_antennas) {
+  VehicleStreet st = vehicle_street(seed, vehicles, half_length);
+  std::mt19937 rng(antenna_seed);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  if (!keep_vehicle_antennas) st.nodes.clear();
+  for (int k = 0; k < antennas; ++k)
+    st.nodes.push_back(node("p" + std::to_string(k), {u(-50, 50), u(-10, 10), u(1.2, 3)}));
+  return st;
+}
+
 }  // namespace
 
 // Property: on random streets the default search finds exactly the
@@ -273,11 +286,7 @@ TEST(ImageSearch, VehicleBouncesWithGroundAndWallsMatchExhaustiveAtOrder2) {
 TEST(ImageSearch, WallEchoesOffThirdVehiclesMatchExhaustiveAtOrder2) {
   std::size_t compared = 0, inside = 0, one_vehicle = 0;
   for (unsigned seed = 1; seed <= 3; ++seed) {
-    VehicleStreet st = vehicle_street(seed, 4, 40);
-    std::mt19937 rng(100 + seed);
-    auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    st.nodes.clear();
-    for (int k = 0; k < 10; ++k) st.nodes.push_back(node("p" + std::to_string(k), {u(-50, 50), u(-10, 10), u(1.2, 3)}));
+    VehicleStreet st = street_with_antennas(seed, 4, 40, 100 + seed, 10, false);
     const auto& scene = *st.scene;
     const auto def = tracer::trace_snapshot(scene, st.nodes, specular_config(2, tracer::CandidateSearch::image), {});
     const auto ref = tracer::trace_snapshot(scene, st.nodes, specular_config(2, tracer::CandidateSearch::exhaustive), {});
@@ -561,10 +570,7 @@ TEST(ImageSearch, WallCarAndGroundAtOrder3MatchExhaustive) {
 TEST(ImageSearch, BeamVehicleMethodsProposeTheSameCandidates) {
   std::size_t total = 0, order3 = 0, own = 0;
   for (unsigned seed = 1; seed <= 3; ++seed) {
-    VehicleStreet st = vehicle_street(seed, 8, 50);
-    std::mt19937 rng(700 + seed);
-    auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    for (int k = 0; k < 6; ++k) st.nodes.push_back(node("p" + std::to_string(k), {u(-50, 50), u(-10, 10), u(1.2, 3)}));
+    VehicleStreet st = street_with_antennas(seed, 8, 50, 700 + seed, 6, true);
     const auto& scene = *st.scene;
     const auto faces = tracer::image_faces(scene);
     std::vector<tracer::BeamVehicle> combos;
