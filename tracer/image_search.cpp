@@ -396,6 +396,29 @@ void beam_keep_kernel(const double* __restrict x, const double* __restrict y, co
   }
 }
 
+// beam_keep_kernel over the spheres [begin, begin + count) of
+// ImageFaces::beam_spheres, with its scratch kept between calls.
+struct BeamSphereTest {
+  std::vector<double> planes, wx, wy, wz, lim;
+  // The pyramid's inward normals, as the kernel takes them.
+  void set_pyramid(const std::vector<Vec3>& pyramid) {
+    planes.clear();
+    for (const auto& nrm : pyramid) planes.insert(planes.end(), nrm.begin(), nrm.end());
+  }
+  // keep[0, count): the spheres in the pyramid (set_pyramid) through `apex`
+  // and not behind `plane` seen from `side` (a zero normal: no plane).
+  void run(const ImageFaces& faces, std::uint32_t begin, std::uint32_t count, const Vec3& apex, double spread_per_m,
+           const Plane& plane, double side, std::vector<std::int64_t>& keep) {
+    if (keep.size() < count) keep.resize(count);
+    if (lim.size() < count) wx.resize(count), wy.resize(count), wz.resize(count), lim.resize(count);
+    const auto& c = faces.beam_spheres;
+    beam_keep_kernel(c.x.data() + begin, c.y.data() + begin, c.z.data() + begin, c.r.data() + begin,
+                     c.tol.data() + begin, count, planes.data(), planes.size() / 3, apex.data(), spread_per_m,
+                     plane.normal.data(), plane.offset, side, wx.data(), wy.data(), wz.data(), lim.data(),
+                     keep.data());
+  }
+};
+
 }  // namespace
 
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
@@ -790,10 +813,11 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
   auto mount_of = [&](std::uint32_t v, std::uint32_t r) -> const std::vector<std::uint32_t>* {
     return static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, nodes[r].position) : nullptr;
   };
-  std::vector<Vec3> pyramid, pyramid_g;
+  std::vector<Vec3> pyramid;
+  std::vector<std::vector<Vec3>> pyramid_g(faces.ground.size());  // f1's pyramid mirrored in each ground face
   std::vector<char> between(faces.ground.size());
   std::vector<Vec3> i1g(faces.ground.size());
-  std::vector<double> plane_cols, wx, wy, wz, lim;
+  BeamSphereTest sphere_test;
   std::vector<std::int64_t> keep_direct;
   std::vector<std::vector<std::int64_t>> keep_between(faces.ground.size());
   enum class Kind { echo, between, last };
@@ -864,9 +888,9 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
       const double dg = dot(pg.normal, i1) - pg.offset, hg = dot(pg.normal, sv.centre) - pg.offset;
       between[k] = faces.ground[k] != f1 && dg != 0 && (dg > 0 ? hg + sv.radius > 0 : hg - sv.radius < 0);
       if (!between[k]) continue;
-      pyramid_g.clear();
-      for (const auto& nrm : pyramid) pyramid_g.push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
-      between[k] = !outside_pyramid(pyramid_g, i1 - (2 * dg) * pg.normal, sv, 0, spread_per_m);
+      pyramid_g[k].clear();
+      for (const auto& nrm : pyramid) pyramid_g[k].push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
+      between[k] = !outside_pyramid(pyramid_g[k], i1 - (2 * dg) * pg.normal, sv, 0, spread_per_m);
       any_between |= between[k] != 0;
     }
     if (!direct && !any_between) continue;
@@ -904,25 +928,14 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     // the ground) can hold the reflection point.
     const std::uint32_t fb = faces.vehicle_begin[v], fe = faces.vehicle_begin[v + 1], nf = fe - fb;
     auto in_beam = [&](const std::vector<Vec3>& planes, const Vec3& apex, std::vector<std::int64_t>& keep) {
-      const auto& c = faces.beam_spheres;
-      const std::uint32_t b = fb - faces.vehicle_begin[0];
-      plane_cols.clear();
-      for (const auto& nrm : planes) plane_cols.insert(plane_cols.end(), nrm.begin(), nrm.end());
-      if (keep.size() < nf) keep.resize(nf), wx.resize(nf), wy.resize(nf), wz.resize(nf), lim.resize(nf);
       // (No plane to be behind: a zero normal keeps every face.)
-      const double no_plane[3] = {0, 0, 0};
-      beam_keep_kernel(c.x.data() + b, c.y.data() + b, c.z.data() + b, c.r.data() + b, c.tol.data() + b, nf,
-                       plane_cols.data(), planes.size(), apex.data(), spread_per_m, no_plane, -1, 1, wx.data(),
-                       wy.data(), wz.data(), lim.data(), keep.data());
+      const Plane no_plane{{0, 0, 0}, -1};
+      sphere_test.set_pyramid(planes);
+      sphere_test.run(faces, fb - faces.vehicle_begin[0], nf, apex, spread_per_m, no_plane, 1, keep);
     };
     if (direct) in_beam(pyramid, i1, keep_direct);
-    for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
-      if (!between[k]) continue;
-      const Plane& pg = faces.planes[faces.ground[k]];
-      pyramid_g.clear();
-      for (const auto& nrm : pyramid) pyramid_g.push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
-      in_beam(pyramid_g, i1g[k], keep_between[k]);
-    }
+    for (std::uint32_t k = 0; k < mirrored.size(); ++k)
+      if (between[k]) in_beam(pyramid_g[k], i1g[k], keep_between[k]);
     // Two exact ways to the same candidates (try_face decides each): per
     // face and kind an image and a vectorised pass over the receivers, or
     // per receiver a lookup in the vehicle's normal table around the
@@ -1069,7 +1082,7 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
   auto is_ground = [&](std::uint32_t f) { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); };
   std::vector<Vec3> pyramid, mirrored;
   std::vector<std::uint32_t> tree_stack, third_faces, kept_vehicles;
-  std::vector<double> plane_cols, wx, wy, wz, lim;
+  BeamSphereTest sphere_test;
   std::vector<std::int64_t> keep;
   for (const BeamPair& bp : beam_pairs) {
     // (Not a structured binding: clang before 16 cannot capture those.)
@@ -1159,14 +1172,9 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
     // behind() and outside() (not narrow: f2 is static), vectorised over
     // the vehicles, then over each kept vehicle's faces.
     if (f2_static && !faces.vehicle_spheres.empty()) {
-      plane_cols.clear();
-      for (const auto& nrm : pyramid) plane_cols.insert(plane_cols.end(), nrm.begin(), nrm.end());
+      sphere_test.set_pyramid(pyramid);
       auto keep_spheres = [&](std::uint32_t begin, std::uint32_t count) {
-        const auto& c = faces.beam_spheres;
-        if (keep.size() < count) keep.resize(count), wx.resize(count), wy.resize(count), wz.resize(count), lim.resize(count);
-        beam_keep_kernel(c.x.data() + begin, c.y.data() + begin, c.z.data() + begin, c.r.data() + begin,
-                         c.tol.data() + begin, count, plane_cols.data(), pyramid.size(), img[2].data(), spread_per_m,
-                         p2.normal.data(), p2.offset, side, wx.data(), wy.data(), wz.data(), lim.data(), keep.data());
+        sphere_test.run(faces, begin, count, img[2], spread_per_m, p2, side, keep);
       };
       const auto vehicles = static_cast<std::uint32_t>(faces.vehicle_spheres.size());
       keep_spheres(faces.beam_vehicles_begin, vehicles);

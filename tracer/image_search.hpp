@@ -63,7 +63,7 @@ struct ImageFaces {
   std::vector<TraceScene::Sphere> vehicle_spheres;
   // The vehicles' faces' spheres and tolerances (from vehicle_begin[0]), then
   // the vehicles' own spheres (tolerance 0), in structure-of-arrays form for
-  // the beams' vectorised tests; padded with NaN to whole vectors.
+  // the beams' vectorised tests.
   struct SphereColumns {
     std::vector<double> x, y, z, r, tol;
   } beam_spheres;
