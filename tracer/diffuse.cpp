@@ -90,6 +90,14 @@ std::vector<SurfaceTile> tile_static_faces(const TraceScene& scene, const std::v
 // from this end.
 struct DiffuseTiles::View {
   std::uint32_t tile = 0;
+  // The tile's own record (a copy of the tree's, which the pair walks would
+  // otherwise fetch from all over its arrays): centre, size and area, its
+  // face, its subtree's end and its second child (0 for a leaf).
+  struct Record {
+    Vec3 centre{0, 0, 0};
+    double size = 0, area = 0;
+    std::uint32_t face = 0, end = 0, second = 0;
+  } record;
   std::uint32_t object = 0;
   std::uint16_t material = 0;
   double r = 0;               // node -> tile centre
@@ -150,6 +158,9 @@ constexpr double kRootTileM = 32;
 struct Visit {
   std::uint32_t node;
   std::int32_t state;  // kHidden, kRefine, or the index of the node's view of the tile
+  // For kRefine: the node's subtree end and second child (the pair walks
+  // read them here, in list order, not from the tree).
+  std::uint32_t end = 0, second = 0;
 };
 }  // namespace
 
@@ -191,7 +202,7 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
     const double t0 = scene.slack(x, 0) * 0.1;
     std::vector<std::uint32_t> stack(T.roots.rbegin(), T.roots.rend());
     auto refine = [&](std::uint32_t t) {
-      sight.visits.push_back({t, kRefine});
+      sight.visits.push_back({t, kRefine, T.tile[t].end, T.tile[t + 1].end});
       stack.push_back(T.tile[t + 1].end);
       stack.push_back(t + 1);
     };
@@ -240,6 +251,8 @@ DiffuseTiles::DiffuseTiles(const TraceScene& scene, const Electromagnetics& em, 
       }
       complete(node, T.tile[t].face, v);
       v.tile = t;
+      const auto& tt = T.tile[t];
+      v.record = {tt.centre, tt.size, tt.area, tt.face, tt.end, inner ? T.tile[t + 1].end : 0};
       sight.visits.push_back({t, static_cast<std::int32_t>(sight.views.size())});
       sight.views.push_back(v);
     }
@@ -368,14 +381,13 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
   // refined, its walk visited the children too, so the next entry of its
   // list is the tile this walk reaches (both go in index order).
   std::size_t ia = 0, ib = 0;
-  auto take = [&](const Sight& s, std::size_t& i, std::uint32_t t) {
+  auto take = [&](const Sight& s, std::size_t& i, std::uint32_t t) -> const Visit& {
     if (i >= s.visits.size() || s.visits[i].node != t) throw std::logic_error("diffuse tiles: walks out of step");
-    return s.visits[i++].state;
+    return s.visits[i++];
   };
   // Past an end's visits below t (the other end does not see t): a
   // galloping search, as most skips are short.
-  auto skip = [&](const Sight& s, std::size_t& i, std::uint32_t t) {
-    const std::uint32_t e = T.tile[t].end;
+  auto skip = [&](const Sight& s, std::size_t& i, std::uint32_t e) {
     const std::size_t n = s.visits.size();
     std::size_t lo = i, step = 1;
     while (lo + step < n && s.visits[lo + step].node < e) {
@@ -400,25 +412,34 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     const Item item = stack.back();
     stack.pop_back();
     const std::uint32_t t = item.t;
-    const std::int32_t slot_a = item.seen_a ? kBelow : take(sa, ia, t);
-    const std::int32_t slot_b = item.seen_b ? kBelow : take(sb, ib, t);
+    const Visit* visit_a = item.seen_a ? nullptr : &take(sa, ia, t);
+    const Visit* visit_b = item.seen_b ? nullptr : &take(sb, ib, t);
+    const std::int32_t slot_a = visit_a ? visit_a->state : kBelow, slot_b = visit_b ? visit_b->state : kBelow;
     const bool seen_a = item.seen_a || slot_a >= 0, seen_b = item.seen_b || slot_b >= 0;
     if ((!seen_a && slot_a != kRefine) || (!seen_b && slot_b != kRefine)) {  // hidden from an end
-      if (slot_a == kRefine) skip(sa, ia, t);
-      if (slot_b == kRefine) skip(sb, ib, t);
+      if (slot_a == kRefine) skip(sa, ia, visit_a->end);
+      if (slot_b == kRefine) skip(sb, ib, visit_b->end);
       continue;
     }
     if (!seen_a || !seen_b) {
-      stack.push_back({T.tile[t + 1].end, seen_a, seen_b});
+      stack.push_back({(slot_a == kRefine ? visit_a : visit_b)->second, seen_a, seen_b});
       stack.push_back({t + 1, seen_a, seen_b});
       continue;
     }
     // Both ends see this tile (so neither list goes below it): integrate
-    // it, finer where an end is close.
-    const Vec3& centre = T.tile[t].centre;
-    const std::uint32_t face = T.tile[t].face;
+    // it, finer where an end is close. Its record from an end's view, or
+    // from the tree where both inherited it.
     const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
     const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
+    View::Record rec;
+    if (va || vb) {
+      rec = (va ? va : vb)->record;
+    } else {
+      const auto& tt = T.tile[t];
+      rec = {tt.centre, tt.size, tt.area, tt.face, tt.end, T.leaf(t) ? 0 : T.tile[t + 1].end};
+    }
+    const Vec3& centre = rec.centre;
+    const std::uint32_t face = rec.face;
     if (!va) {
       if (!view(a, centre, face, ca)) continue;
       va = &ca;
@@ -427,12 +448,12 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
       if (!view(b, centre, face, cb)) continue;
       vb = &cb;
     }
-    if (T.tile[t].size <= ratio_ * std::min(va->r, vb->r)) {
-      add(*va, *vb, T.tile[t].area, centre);
+    if (rec.size <= ratio_ * std::min(va->r, vb->r)) {
+      add(*va, *vb, rec.area, centre);
       continue;
     }
-    if (!T.leaf(t)) {
-      stack.push_back({T.tile[t + 1].end, true, true});
+    if (rec.end != t + 1) {  // not a leaf
+      stack.push_back({rec.second, true, true});
       stack.push_back({t + 1, true, true});
       continue;
     }
