@@ -5,8 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "meshkit/materials.hpp"
 #include "tracer/em.hpp"
@@ -87,6 +89,32 @@ TEST(Slab, LossyNeverCreatesEnergy) {
       EXPECT_LT(std::norm(s.r.tm) + std::norm(s.t.tm), 1.0) << name << " " << deg;
     }
   }
+}
+
+// Most callers reflect only: slab_reflection skips the transmission's
+// exponential and divisions and must give the same bits as the full slab.
+TEST(Slab, ReflectionAloneIsTheFullSlabsReflectionBitForBit) {
+  auto same = [](cdouble a, cdouble b) {
+    return std::memcmp(&a, &b, sizeof a) == 0;
+  };
+  std::vector<RadioMaterial> materials;
+  for (const char* name : {"concrete", "glass", "brick", "wood", "plasterboard", "metal", "medium_dry_ground"})
+    materials.push_back(radio_material(name, kF));
+  for (double thickness : {0.001, 0.0127, 0.3}) materials.push_back(slab(6.31, 0, thickness));  // lossless
+  materials.push_back(slab(1.0, 0, 0.05));                                                     // vacuum
+  int compared = 0;
+  for (const auto& m : materials)
+    for (int k = 0; k <= 2000; ++k) {
+      const double c = k / 2000.0;  // 0 (grazing) and 1 (normal) included
+      const TeTm r = slab_reflection(m, c);
+      const SlabCoefficients full = slab_coefficients(m, c);
+      EXPECT_TRUE(same(r.te, full.r.te) && same(r.tm, full.r.tm)) << m.name << " cos " << c;
+      ++compared;
+    }
+  EXPECT_EQ(compared, 11 * 2001);
+  RadioMaterial no_frequency = slab(4.0, 0, 0.1);
+  no_frequency.frequency_hz = 0;
+  EXPECT_THROW(slab_reflection(no_frequency, 0.5), std::invalid_argument);
 }
 
 TEST(Slab, MatchesCharacteristicMatrixAtNormalAndOblique) {

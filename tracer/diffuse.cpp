@@ -293,10 +293,10 @@ void DiffuseTiles::complete(std::uint32_t node, std::uint32_t face, View& v) con
   v.node = &nd;
   v.field = antenna_field(em_.radio().antenna, v.k, nd.forward);
   v.spec = v.k + (2 * v.cos_i) * v.n_front;
-  const auto c = em_.coefficients(v.material, v.cos_i);
+  const TeTm r = em_.reflection(v.material, v.cos_i);
   const Vec3 es = te_basis(v.k, v.n_front);
   const Vec3 ep_in = cross(es, v.k), ep_out = cross(es, v.spec);
-  const cdouble a_te = c.r.te * dot(v.field, es), a_tm = c.r.tm * dot(v.field, ep_in);
+  const cdouble a_te = r.te * dot(v.field, es), a_tm = r.tm * dot(v.field, ep_in);
   for (int q = 0; q < 3; ++q) v.e_ref[q] = a_te * es[q] + a_tm * ep_out[q];
   v.e_ref2 = std::norm(v.e_ref[0]) + std::norm(v.e_ref[1]) + std::norm(v.e_ref[2]);
   v.lobe = ScatteringLobeAt(*v.sc, v.k, scene_.plane(ref).normal);

@@ -156,7 +156,12 @@ TeTm interface_reflection(cdouble eta, double cos_theta) {
   return interface_from_root(eta, c, normal_wavenumber_ratio(eta, c));
 }
 
-SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta) {
+namespace {
+
+// slab_coefficients, with the transmission when kTransmission: one body, so
+// the reflection is the same arithmetic either way.
+template <bool kTransmission>
+SlabCoefficients slab(const RadioMaterial& m, double cos_theta) {
   const double c = std::clamp(cos_theta, 0.0, 1.0);
   const cdouble eta = m.eta();
   const cdouble s = normal_wavenumber_ratio(eta, c);
@@ -171,20 +176,31 @@ SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta) {
 
   const double k0d = 2 * kPi * m.frequency_hz / kSpeedOfLight * m.thickness_m;
   const cdouble q = k0d * s;
-  const double q0 = k0d * c;
   // Written out as exp(real) * phase so the decaying factors underflow to 0
   // (metal: Im q ~ -1e3) instead of forming inf * 0 anywhere.
   const cdouble e2 = std::polar(std::exp(2 * q.imag()), -2 * q.real());  // e^{-j2q}
-  const cdouble e1 = std::polar(std::exp(q.imag()), -(q.real() - q0));  // e^{-j(q-q0)}
-  auto one = [&](cdouble rp) {
+  auto reflection = [&](cdouble rp, cdouble& den) {
     const cdouble rp2 = rp * rp;
-    const cdouble den = 1.0 - rp2 * e2;
-    return std::pair<cdouble, cdouble>{rp * (1.0 - e2) / den, (1.0 - rp2) * e1 / den};
+    den = 1.0 - rp2 * e2;
+    return rp * (1.0 - e2) / den;
   };
-  const auto [r_te, t_te] = one(r_if.te);
-  const auto [r_tm, t_tm] = one(r_if.tm);
-  return {{r_te, r_tm}, {t_te, t_tm}};
+  cdouble den_te, den_tm;
+  const TeTm r{reflection(r_if.te, den_te), reflection(r_if.tm, den_tm)};
+  if constexpr (!kTransmission) {
+    return {r, {0.0, 0.0}};
+  } else {
+    const double q0 = k0d * c;
+    const cdouble e1 = std::polar(std::exp(q.imag()), -(q.real() - q0));  // e^{-j(q-q0)}
+    auto transmission = [&](cdouble rp, cdouble den) { return (1.0 - rp * rp) * e1 / den; };
+    return {r, {transmission(r_if.te, den_te), transmission(r_if.tm, den_tm)}};
+  }
 }
+
+}  // namespace
+
+SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta) { return slab<true>(m, cos_theta); }
+
+TeTm slab_reflection(const RadioMaterial& m, double cos_theta) { return slab<false>(m, cos_theta).r; }
 
 AntennaPattern parse_antenna_pattern(const std::string& s) {
   if (s == "isotropic") return AntennaPattern::isotropic;
@@ -502,7 +518,7 @@ DiffractionCoefficients utd_wedge(double n, double phi_i, double phi_d, double b
   auto refl = [&](const RadioMaterial* m, double a, double b) -> TeTm {
     if (!m) return {-1.0, 1.0};
     auto at = [&](double grazing) {
-      return slab_coefficients(*m, std::clamp(sb * std::fabs(std::sin(grazing)), 0.0, 1.0)).r;
+      return slab_reflection(*m, std::clamp(sb * std::fabs(std::sin(grazing)), 0.0, 1.0));
     };
     const bool sa = a > 0 && a < kPi, sb_ = b > 0 && b < kPi;
     if (sa != sb_) return at(sa ? a : b);

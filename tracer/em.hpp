@@ -137,6 +137,10 @@ struct SlabCoefficients {
   TeTm r, t;
 };
 SlabCoefficients slab_coefficients(const RadioMaterial& m, double cos_theta);
+// Its reflection alone: slab_coefficients(m, cos_theta).r bit for bit,
+// without the transmission's exponential and divisions (most callers
+// reflect only).
+TeTm slab_reflection(const RadioMaterial& m, double cos_theta);
 
 // The UTD transition function F(X) = 2j sqrt(X) e^{jX} int_{sqrt X}^inf e^{-j t^2} dt
 // (Kouyoumjian and Pathak, Proc. IEEE 1974), X >= 0; F(0) = 0, F -> 1 for large X.

@@ -31,10 +31,10 @@ CVec3 combine(cdouble a, const Vec3& u, cdouble b, const Vec3& w) {
 // Field e, travelling along k_in, reflected by a face of plane normal n
 // with slab coefficients c (TE/TM in the face's basis), keeping `keep` of
 // it (a rough surface's specular share).
-CVec3 reflect_field(const CVec3& e, const Vec3& k_in, const Vec3& n, const SlabCoefficients& c, double keep) {
+CVec3 reflect_field(const CVec3& e, const Vec3& k_in, const Vec3& n, const TeTm& r, double keep) {
   const Vec3 es = te_basis(k_in, n);
   const Vec3 k_out = k_in - (2 * dot(k_in, n)) * n;
-  return combine(keep * c.r.te * cdot(e, es), es, keep * c.r.tm * cdot(e, cross(es, k_in)), cross(es, k_out));
+  return combine(keep * r.te * cdot(e, es), es, keep * r.tm * cdot(e, cross(es, k_in)), cross(es, k_out));
 }
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -114,6 +114,10 @@ Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const 
 
 SlabCoefficients Electromagnetics::coefficients(std::uint16_t i, double cos_theta) const {
   return slab_coefficients(materials_.at(i), std::clamp(cos_theta, 0.0, 1.0));
+}
+
+TeTm Electromagnetics::reflection(std::uint16_t i, double cos_theta) const {
+  return slab_reflection(materials_.at(i), std::clamp(cos_theta, 0.0, 1.0));
 }
 
 std::vector<Node> vehicle_nodes(const TraceScene& scene) {
@@ -298,12 +302,12 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     const Vec3& k_in = ev.dir_in;
     const double cos_theta = std::fabs(dot(k_in, p.normal));
     const auto mat = scene.material(ev.face);
-    const auto c = em.coefficients(mat, cos_theta);
     if (ev.reflection) {
       // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
       // scattered part is traced (effective roughness energy partition).
-      e = reflect_field(e, k_in, p.normal, c, em.specular_keep(mat));
+      e = reflect_field(e, k_in, p.normal, em.reflection(mat, cos_theta), em.specular_keep(mat));
     } else {
+      const auto c = em.coefficients(mat, cos_theta);
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
       const Vec3 es = te_basis(k_in, p.normal);
       const Vec3 ep_in = cross(es, k_in);
@@ -483,7 +487,7 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   // A reflection of field e travelling along k_in on face f (plane pl).
   auto reflect = [&](const CVec3& e, const Vec3& k_in, const FaceRef& f, const Plane& pl) {
     const auto mat = scene.material(f);
-    return reflect_field(e, k_in, pl.normal, em.coefficients(mat, std::fabs(dot(k_in, pl.normal))),
+    return reflect_field(e, k_in, pl.normal, em.reflection(mat, std::fabs(dot(k_in, pl.normal))),
                          em.specular_keep(mat));
   };
   cdouble field;
@@ -805,7 +809,9 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
       // off a smooth, opaque face): the slab coefficients are the costly part.
       const bool field_needed = can_scatter || can_transmit || (can_reflect && st.n + 1 < cfg.max_depth);
       if (scatter && field_needed) {
-        coef = em.coefficients(mat, std::fabs(dot(st.d, plane.normal)));
+        const double cos_in = std::fabs(dot(st.d, plane.normal));
+        // (The transmission only where the ray goes on through the slab.)
+        coef = can_transmit ? em.coefficients(mat, cos_in) : SlabCoefficients{em.reflection(mat, cos_in), {}};
         es = te_basis(st.d, plane.normal);
         ep_in = cross(es, st.d);
         e_ref = combine(coef.r.te * cdot(st.field, es), es, coef.r.tm * cdot(st.field, ep_in), cross(es, k_out));
@@ -948,11 +954,11 @@ void shoot_from(const TraceScene& scene, const Electromagnetics& em, const Trace
           if (diffuse->hides(j, hit.face)) continue;
           ++rays;
           if (scene.occluded(p, -1.0 * ki, 0, la - scene.slack(nodes[j].position, 0) * 0.1, &hit.face)) continue;
-          const auto ca = em.coefficients(mat, cos_a);
+          const TeTm ra = em.reflection(mat, cos_a);
           const Vec3 es_a = te_basis(ki, plane.normal);
           const Vec3 ko_a = ki - (2 * dot(ki, plane.normal)) * plane.normal;
           const CVec3 e_ref_a =
-              combine(ca.r.te * cdot(e_a, es_a), es_a, ca.r.tm * cdot(e_a, cross(es_a, ki)), cross(es_a, ko_a));
+              combine(ra.te * cdot(e_a, es_a), es_a, ra.tm * cdot(e_a, cross(es_a, ki)), cross(es_a, ko_a));
           double power = scattered(e_ref_a, ks, f, hit.t, nodes[src].forward);
           power *= balance * weight;
           if (!(power > 0)) continue;

@@ -99,6 +99,7 @@ class Electromagnetics {
                    const std::map<std::string, MaterialOverride>& overrides, bool rough = false);
   const RadioMaterial& material(std::uint16_t i) const { return materials_.at(i); }
   SlabCoefficients coefficients(std::uint16_t i, double cos_theta) const;
+  TeTm reflection(std::uint16_t i, double cos_theta) const;  // coefficients(i, cos_theta).r, bit for bit
   // Half spaces and good conductors: nothing gets through.
   bool opaque(std::uint16_t i) const { return opaque_.at(i); }
   // Loss of the stronger polarisation through the slab at normal incidence (dB).
