@@ -29,7 +29,7 @@ CVec3 combine(cdouble a, const Vec3& u, cdouble b, const Vec3& w) {
 }
 
 // Field e, travelling along k_in, reflected by a face of plane normal n
-// with slab coefficients c (TE/TM in the face's basis), keeping `keep` of
+// with reflection coefficients r (TE/TM in the face's basis), keeping `keep` of
 // it (a rough surface's specular share).
 CVec3 reflect_field(const CVec3& e, const Vec3& k_in, const Vec3& n, const TeTm& r, double keep) {
   const Vec3 es = te_basis(k_in, n);
