@@ -8,7 +8,7 @@ PACKAGES=(
   cmake ninja-build g++ ccache pkg-config git
   libembree-dev libtbb-dev libhdf5-dev hdf5-tools libcgal-dev libeigen3-dev
   libdraco-dev libtinygltf-dev libopenmesh-dev libmeshoptimizer-dev
-  libosmium2-dev libexpat1-dev zlib1g-dev libbz2-dev libproj-dev proj-bin
+  libosmium2-dev libexpat1-dev zlib1g-dev libdeflate-dev libbz2-dev libproj-dev proj-bin
   libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libtomlplusplus-dev libssl-dev
   libgtest-dev libbenchmark-dev
   clang libclang-rt-14-dev
