@@ -5,6 +5,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <utility>
+#include <vector>
 
 #include "meshkit/materials.hpp"
 
@@ -255,8 +256,15 @@ Vec3 dipole_field(AntennaPattern pattern, const Vec3& axis, const Vec3& dir) {
 Vec3 antenna_field(const AntennaSpec& antenna, const Vec3& dir, const Vec3& forward) {
   const Vec3 z{0, 0, 1};
   // Tolerate a heading with a small vertical component or length error.
-  const Vec3 x = normalize(Vec3{forward[0], forward[1], 0});
-  if (norm(x) == 0) throw std::invalid_argument("antenna_field: forward must have a horizontal component");
+  const Vec3 horizontal{forward[0], forward[1], 0};
+  const double h = norm(horizontal);
+  if (!(h > 0)) throw std::invalid_argument("antenna_field: forward must have a horizontal component");
+  // A vertical dipole does not depend on the heading (the tracer's default;
+  // the diffuse integrations evaluate it millions of times a snapshot).
+  if (antenna.pattern != AntennaPattern::isotropic && antenna.polarization == Polarization::V)
+    // -projection of z = theta_hat, so V dipoles and V isotropic agree in sign.
+    return -dipole_field(antenna.pattern, z, dir);
+  const Vec3 x = (1.0 / h) * horizontal;  // normalize(), without its second square root
   const Vec3 y = cross(z, x);
   if (antenna.pattern == AntennaPattern::isotropic) {
     Vec3 phi_hat = cross(z, dir);
@@ -269,9 +277,6 @@ Vec3 antenna_field(const AntennaSpec& antenna, const Vec3& dir, const Vec3& forw
     if (antenna.polarization == Polarization::H) return phi_hat;
     return cross(phi_hat, dir);  // theta_hat
   }
-  if (antenna.polarization == Polarization::V)
-    // -projection of z = theta_hat, so V dipoles and V isotropic agree in sign.
-    return -dipole_field(antenna.pattern, z, dir);
   // +projection of y = phi_hat in the forward direction (isotropic H agrees there).
   return dipole_field(antenna.pattern, y, dir);
 }
@@ -314,29 +319,66 @@ double ipow(double x, int n) {
   return r;
 }
 
+// The factors of lobe_integral_cos's sum that do not depend on the angle,
+// for one alpha: C(alpha, j), 2 pi / (j + 1), C(2w, w) and 2^alpha, by the
+// recurrences the sum once ran on every call, so it gives the same bits.
+// Every view of a diffuse tile and every rough-surface hit builds a lobe,
+// and these divisions were most of its cost.
+struct LobeTerms {
+  std::vector<double> binom, ij, cw;
+  double pow2 = 1;
+};
+
+LobeTerms lobe_terms(int alpha) {
+  LobeTerms t;
+  double binom = 1, cw = 1;
+  for (int j = 0; j <= alpha; ++j) {
+    t.binom.push_back(binom);
+    t.ij.push_back(2 * kPi / (j + 1));
+    binom = binom * (alpha - j) / (j + 1.0);
+  }
+  for (int w = 0; w <= (alpha - 1) / 2; ++w) {
+    t.cw.push_back(cw);
+    cw = cw * (2.0 * w + 1) * (2.0 * w + 2) / ((w + 1.0) * (w + 1.0));
+  }
+  t.pow2 = ipow(2.0, alpha);
+  return t;
+}
+
+// Tabled up to this alpha (the config allows 1..20); beyond, built per call.
+constexpr int kTabledAlpha = 64;
+
 // lobe_integral with theta given by its cosine.
 double lobe_integral_cos(int alpha, double ct) {
   // ((1 + cos psi)/2)^alpha = 2^-alpha sum_j C(alpha, j) cos^j psi, and the
   // hemisphere integral of cos^j psi is 2 pi / (j + 1) for even j and
   // 2 pi / (j + 1) cos(theta) sum_{w <= (j-1)/2} C(2w, w) sin^2w(theta) / 4^w
   // for odd j (Degli-Esposti et al. 2007, eq. 9).
+  static const std::vector<LobeTerms> table = [] {
+    std::vector<LobeTerms> t;
+    for (int a = 0; a <= kTabledAlpha; ++a) t.push_back(lobe_terms(a));
+    return t;
+  }();
+  LobeTerms own;
+  const bool tabled = alpha >= 0 && alpha <= kTabledAlpha;
+  if (!tabled) own = lobe_terms(alpha);
+  const LobeTerms& t = tabled ? table[static_cast<std::size_t>(alpha)] : own;
   const double st2 = std::max(0.0, 1 - ct * ct);
-  double sum = 0, binom = 1;  // C(alpha, j)
+  // The odd terms' inner sums are prefixes of one sum: each odd j adds the
+  // term w = (j - 1) / 2 to the previous one's.
+  double sum = 0, inner = 0, pw = 1;  // pw = (sin^2 / 4)^w
+  std::size_t w = 0;
   for (int j = 0; j <= alpha; ++j) {
-    double ij = 2 * kPi / (j + 1);
+    const auto uj = static_cast<std::size_t>(j);
+    double ij = t.ij[uj];
     if (j % 2) {
-      double inner = 0, cw = 1, pw = 1;  // C(2w, w), (sin^2 / 4)^w
-      for (int w = 0; w <= (j - 1) / 2; ++w) {
-        inner += cw * pw;
-        cw = cw * (2.0 * w + 1) * (2.0 * w + 2) / ((w + 1.0) * (w + 1.0));
-        pw *= st2 / 4;
-      }
+      inner += t.cw[w++] * pw;
+      pw *= st2 / 4;
       ij *= ct * inner;
     }
-    sum += binom * ij;
-    binom = binom * (alpha - j) / (j + 1.0);
+    sum += t.binom[uj] * ij;
   }
-  return sum / ipow(2.0, alpha);
+  return sum / t.pow2;
 }
 
 }  // namespace
