@@ -107,7 +107,7 @@ void write_str_attr(const std::string& file, const Types& types, hid_t loc, cons
 }
 
 constexpr std::size_t kFlushBytes = std::size_t{1} << 20;  // write when a buffer holds about this much
-constexpr int kDeflateLevel = 4;
+constexpr int kDeflateLevel = 2;  // libdeflate level 2: bench_dataset (docs/tracer.md, "Speed, 2026-12-01 night")
 // Chunks handed to H5Dwrite_chunk are in the file's byte order (little endian).
 constexpr bool kLittleEndian = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
 
