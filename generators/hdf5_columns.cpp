@@ -107,7 +107,7 @@ void write_str_attr(const std::string& file, const Types& types, hid_t loc, cons
 }
 
 constexpr std::size_t kFlushBytes = std::size_t{1} << 20;  // write when a buffer holds about this much
-constexpr int kDeflateLevel = 2;  // libdeflate level 2: bench_dataset (docs/tracer.md, "Speed, 2026-12-01 night")
+constexpr int kDeflateLevel = 2;  // see shuffle_deflate
 // Chunks handed to H5Dwrite_chunk are in the file's byte order (little endian).
 constexpr bool kLittleEndian = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
 
@@ -118,10 +118,10 @@ namespace {
 // chunks can be compressed on every core and handed to H5Dwrite_chunk: the
 // library's own filter pipeline runs on the calling thread only. Readers see
 // an ordinary shuffle + deflate chunk. The stream comes from libdeflate, not
-// zlib: on a ring-road sweep's columns it is 2.1 x as fast at the same level
-// and 1.7 % smaller (docs/tracer.md, "Speed, 2026-12-01 night"); its output
-// depends only on the input and the level, so files stay byte-identical for
-// identical input whatever the thread count.
+// zlib: on a ring-road sweep's columns its level 2 is 2.1 x as fast as zlib's
+// level 4 and 1.2 % smaller (bench/bench_dataset.cpp); its output depends only
+// on the input and the level, so files stay byte-identical for identical input
+// whatever the thread count.
 std::vector<unsigned char> shuffle_deflate(const unsigned char* in, std::size_t bytes, std::size_t element) {
   std::vector<unsigned char> shuffled;
   const std::size_t n = element > 1 ? bytes / element : 0;
