@@ -17,8 +17,11 @@
 
 #include <cstdlib>
 #include <filesystem>
+#include <stdexcept>
 #include <string>
 #include <vector>
+
+#include "generators/hdf5_columns.hpp"
 
 namespace fs = std::filesystem;
 
@@ -92,12 +95,8 @@ const Chunks& chunks() {
       if (H5Dread(d, type, mspace, fspace, H5P_DEFAULT, all.data()) >= 0) {
         const std::size_t chunk_bytes = col.chunk_rows * col.width * col.element;
         for (std::size_t s = 0; s < all.size(); s += chunk_bytes) {
-          const std::size_t bytes = std::min(chunk_bytes, all.size() - s), n = bytes / col.element;
-          std::vector<unsigned char> sh(bytes);
-          unsigned char* o = sh.data();
-          for (std::size_t b = 0; b < col.element; ++b)
-            for (std::size_t i = 0; i < n; ++i) *o++ = all[s + i * col.element + b];
-          out.shuffled.push_back(std::move(sh));
+          const std::size_t bytes = std::min(chunk_bytes, all.size() - s);
+          out.shuffled.push_back(raysweep::generators::hdf5::shuffle_bytes(all.data() + s, bytes, col.element));
           out.raw += bytes;
         }
       }
@@ -137,17 +136,21 @@ void BM_Zlib(benchmark::State& state) {
   run(state, [&](const std::vector<unsigned char>& in) {
     uLongf size = compressBound(static_cast<uLong>(in.size()));
     z.resize(size);
-    compress2(z.data(), &size, in.data(), static_cast<uLong>(in.size()), level);
+    if (compress2(z.data(), &size, in.data(), static_cast<uLong>(in.size()), level) != Z_OK)
+      throw std::runtime_error("zlib: cannot deflate a chunk");
     return static_cast<std::size_t>(size);
   });
 }
 
 void BM_Libdeflate(benchmark::State& state) {
   libdeflate_compressor* comp = libdeflate_alloc_compressor(static_cast<int>(state.range(0)));
+  if (!comp) throw std::runtime_error("libdeflate: cannot allocate a compressor");
   std::vector<unsigned char> z;
   run(state, [&](const std::vector<unsigned char>& in) {
     z.resize(libdeflate_zlib_compress_bound(comp, in.size()));
-    return libdeflate_zlib_compress(comp, in.data(), in.size(), z.data(), z.size());
+    const std::size_t size = libdeflate_zlib_compress(comp, in.data(), in.size(), z.data(), z.size());
+    if (size == 0) throw std::runtime_error("libdeflate: cannot deflate a chunk");
+    return size;
   });
   libdeflate_free_compressor(comp);
 }

@@ -111,6 +111,18 @@ constexpr int kDeflateLevel = 2;  // see shuffle_deflate
 // Chunks handed to H5Dwrite_chunk are in the file's byte order (little endian).
 constexpr bool kLittleEndian = __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__;
 
+std::vector<unsigned char> shuffle_bytes(const unsigned char* in, std::size_t bytes, std::size_t element) {
+  std::vector<unsigned char> shuffled(in, in + bytes);
+  const std::size_t n = element > 1 ? bytes / element : 0;
+  if (n > 1) {
+    unsigned char* out = shuffled.data();
+    for (std::size_t b = 0; b < element; ++b)
+      for (std::size_t i = 0; i < n; ++i) *out++ = in[i * element + b];
+    // (the partial element's bytes are already last)
+  }
+  return shuffled;
+}
+
 namespace {
 
 // What HDF5's shuffle then deflate filters make of one chunk (H5Zshuffle.c's
@@ -124,13 +136,8 @@ namespace {
 // whatever the thread count.
 std::vector<unsigned char> shuffle_deflate(const unsigned char* in, std::size_t bytes, std::size_t element) {
   std::vector<unsigned char> shuffled;
-  const std::size_t n = element > 1 ? bytes / element : 0;
-  if (n > 1) {
-    shuffled.resize(bytes);
-    unsigned char* out = shuffled.data();
-    for (std::size_t b = 0; b < element; ++b)
-      for (std::size_t i = 0; i < n; ++i) *out++ = in[i * element + b];
-    std::copy(in + n * element, in + bytes, out);  // a partial element stays last, as the filter leaves it
+  if (element > 1 && bytes / element > 1) {  // else the filter leaves the bytes as they are
+    shuffled = shuffle_bytes(in, bytes, element);
     in = shuffled.data();
   }
   // A compressor per thread: allocating one per chunk costs about as much as

@@ -40,6 +40,11 @@ enum class Dtype { u8, u16, u32, u64, f32, f64, c64, str };
 Dtype parse_dtype(const std::string& s);  // schema dtype name; std::logic_error when unknown
 std::size_t dtype_bytes(Dtype t);         // bytes of one element in memory
 
+// What HDF5's shuffle filter makes of one chunk of `bytes` bytes (H5Zshuffle.c):
+// the elements' first bytes, then their second bytes, ...; a partial element
+// stays last. The column writer deflates this (bench/bench_dataset.cpp too).
+std::vector<unsigned char> shuffle_bytes(const unsigned char* in, std::size_t bytes, std::size_t element);
+
 // Memory and file types. Predefined types are not owned; the compound and string
 // types are created once per file.
 class Types {
