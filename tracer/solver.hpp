@@ -1,13 +1,17 @@
-// Path solver: for every unordered pair of antenna nodes, the line-of-sight,
-// specular and refracted paths with full polarisation, and the LoS class.
+// Path solver: for every requested pair of antenna nodes, the propagation
+// paths with full polarisation (complex gain, delay, angles, Doppler,
+// interactions) and the pair's LoS / NLoSv / NLoS labels.
 //
-// Search: shoot-and-bounce from every node proposes sequences of reflecting
-// faces (a ray that passes close to another node nominates the faces it
-// bounced on); the image method then recomputes each sequence exactly in
-// double precision and traces every segment, adding the slabs it crosses and
-// rejecting it when the reflection point is off its face or the way is
-// opaque. Sequences found from either end of a pair are merged, so each
-// unordered pair is traced once and a_ij = a_ji.
+// trace_pairs plans the pairs (which are in range, which nodes serve as
+// sources), lets each enabled mechanism (tracer/mechanism.hpp) prepare what
+// its pairs share, then per pair labels the direct line and collects the
+// mechanisms' paths in a fixed order: direct (vehicles as knife edges),
+// specular and refracted (candidates from the exact image search, the beams
+// and the shoot-and-bounce rays, each solved exactly by the image method),
+// UTD diffraction (static edges, with a reflection before or after, and
+// vehicle edges), diffuse scattering (rays or surface tiles). Duplicates and
+// paths far below the strongest are dropped. Each unordered pair is traced
+// once from both ends' candidates, so a_ij = a_ji.
 #pragma once
 
 #include <cstdint>
@@ -17,6 +21,7 @@
 #include <vector>
 
 #include "tracer/config.hpp"
+#include "tracer/electromagnetics.hpp"
 #include "tracer/path.hpp"
 #include "tracer/trace_scene.hpp"
 
@@ -86,34 +91,6 @@ struct SnapshotStats {
 struct Snapshot {
   std::vector<PairResult> pairs;  // (0,1), (0,2), ..., (1,2), ...
   SnapshotStats stats;
-};
-
-// Materials evaluated at the carrier for one scene (errors for materials
-// used by the scene whose P.2040 range excludes the carrier).
-class Electromagnetics {
- public:
-  // `rough`: diffuse scattering is traced, so specular reflections keep
-  // sqrt(1 - S^2) of their field (specular_keep), in reflected and
-  // diffracted paths alike.
-  Electromagnetics(const std::vector<std::string>& material_names, const RadioConfig& radio,
-                   const std::map<std::string, MaterialOverride>& overrides, bool rough = false);
-  const RadioMaterial& material(std::uint16_t i) const { return materials_.at(i); }
-  SlabCoefficients coefficients(std::uint16_t i, double cos_theta) const;
-  TeTm reflection(std::uint16_t i, double cos_theta) const;  // coefficients(i, cos_theta).r, bit for bit
-  // Half spaces and good conductors: nothing gets through.
-  bool opaque(std::uint16_t i) const { return opaque_.at(i); }
-  // Loss of the stronger polarisation through the slab at normal incidence (dB).
-  double normal_transmission_loss_db(std::uint16_t i) const { return normal_loss_db_.at(i); }
-  double wavelength() const { return kSpeedOfLight / radio_.frequency_hz; }
-  double specular_keep(std::uint16_t i) const { return keep_.at(i); }
-  const RadioConfig& radio() const { return radio_; }
-
- private:
-  RadioConfig radio_;
-  std::vector<RadioMaterial> materials_;
-  std::vector<bool> opaque_;
-  std::vector<double> normal_loss_db_;
-  std::vector<double> keep_;
 };
 
 // Traces all pairs of `nodes` in the scene's current frame. Deterministic for
