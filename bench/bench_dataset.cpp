@@ -2,8 +2,8 @@
 // shuffled as HDF5's shuffle filter lays them out, deflated by zlib and by
 // libdeflate at several levels, on one thread. The dataset writer compresses
 // its chunks this way on every core (generators/hdf5_columns.cpp); the choice
-// of compressor and level is made from these numbers (docs/tracer.md, "Speed,
-// 2026-12-01 night").
+// of compressor and level is made from these numbers (docs/performance.md,
+// docs/decisions.md).
 //
 // Input: RAYSWEEP_BENCH_DATASET, or out/van3twin-ring/dataset.h5 under the
 // source tree (`raysweep run datasets/van3twin-ring/city.toml --until sweep`),

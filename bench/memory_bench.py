@@ -3,9 +3,9 @@
 sweep length (a benchmark, not a timed test).
 
 Frames are streamed to their block file as they are traced and streamed back
-into the dataset, so the peak should stay flat as either grows; before that
-change a whole block of frames was held in memory (1,056 MB peak for the ring
-road's 60 vehicles at block_frames = 100, see README).
+into the dataset, so the peak should stay flat as either grows (a whole block
+held in memory would be 1,056 MB for the ring road's 60 vehicles at
+block_frames = 100).
 
 Inputs: a scene folder, an FCD file, vType files and (optionally) a vehicle
 library, by default those `raysweep run datasets/van3twin-ring/city.toml` leaves

@@ -972,8 +972,8 @@ TEST(Diffraction, ContinuousAcrossShadowBoundariesHardRoofEdge) {
 // Exactly on a boundary the diffraction coefficient takes one one-sided limit
 // (eps >= 0) while the geometric-optics term is decided by the blocking test
 // (Embree, float) or the reflection point's in-face test: when the two
-// disagree the total jumps by the GO field. Found with the implementation of
-// 2026-11-21 (metal, 1 mm neighbours agree within 0.02 dB): soft ISB exact
+// disagree the total jumps by the GO field. Measured on metal (1 mm
+// neighbours agree within 0.02 dB): soft ISB exact
 // -94.31 dB vs -96.67 dB (LoS counted blocked up to +1e-5 m while the
 // coefficient is already the lit-side one), soft RSB exact -94.50 vs -85.61
 // dB (specular absent at exactly 0, coefficient of the specular-present

@@ -51,7 +51,7 @@ struct TracerConfig {
   bool refraction = true;  // transmission through slabs (without bending)
   // 6144: the least (of 4096, 6144, 8192) whose pairs' gains are within
   // 1 dB p95 of a 65,536-ray reference at the sensitivity floor on both
-  // bundled cities (`raysweep tradeoff`, README); 4096 is 19-23 % faster
+  // bundled cities (`raysweep tradeoff`, docs/performance.md); 4096 is 19-23 % faster
   // and 1.02 dB off on the demo city (the diffuse estimator's variance).
   int rays_per_source = 6144;
   // Reception sphere radius = factor * angular ray spacing * unfolded length.

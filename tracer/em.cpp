@@ -471,7 +471,7 @@ cdouble utd_transition(double x) {
   // and from x = 40 on they fall below 1e-16 before turning (the smallest
   // is about e^-x), so the sum is as exact as the continued fraction
   // below without its complex divisions, exponential and hypot (a
-  // snapshot's diffraction: 0.78-0.88 of its thread time, docs/tracer.md).
+  // snapshot's diffraction: 0.78-0.88 of its thread time; docs/tracer.md).
   if (x >= 40) {
     const double h = 0.5 / x;
     double re = 1, im = 0, t = 1;  // t = (2m - 1)!! h^m
