@@ -421,52 +421,167 @@ struct BeamSphereTest {
 
 }  // namespace
 
-void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
-                      std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
-                      bool ground_order3) {
-  if (max_order < 1 || receivers.empty()) return;
-  ImageSearchStats local;
-  const Vec3 xs = nodes[src].position;
-  // Everything relative to the source: the source is the origin.
-  Receivers rx, scratch;
-  for (auto r : receivers) {
-    const Vec3 w = nodes[r].position - xs;
-    rx.push(w);
-  }
-  scratch.n = rx.size();
-  scratch.pad();
-  auto receiver = [&](std::size_t r) { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; };
-  auto on_face = [&](std::size_t f, const Vec3& p) {
-    const Vec3 w = p - faces.spheres[f].centre;
-    const double rr = faces.spheres[f].radius + faces.tol[f];
-    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
-  };
+namespace {
 
-  const std::size_t higher_from =
-      static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin());
-  // Order 1, static faces (towards higher receivers).
-  for (std::size_t f = 0; f < faces.static_count; ++f) {
-    const Plane& pl = faces.planes[f];
-    const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
-    const double ds = -off;                              // the source's signed distance
-    if (ds == 0) continue;  // the source on the plane sees no image
-    const Vec3 img = (-2 * ds) * pl.normal;
-    ++local.image_sources;
-    local.tests += rx.size();
-    if (!mark_crossings(rx, higher_from, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs, faces.tol[f], scratch))
-      continue;
-    for (std::size_t r = higher_from; r < rx.size(); ++r) {
-      if (!scratch.hit[r]) continue;
-      const Vec3 xr = receiver(r);
-      const double d = dot(pl.normal, xr) - pl.offset;
-      if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d))) out.push_back({receivers[r], {faces.refs[f]}});
+// What one source's searches share: the source, its receivers relative to it
+// (the vectorised passes' form), the on-face test and the counters.
+class SourceSearch {
+ public:
+  SourceSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+               const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+      : scene(scene), faces(faces), nodes(nodes), receivers(receivers), out(out), xs(nodes[src].position) {
+    for (auto r : receivers) rx.push(nodes[r].position - xs);
+    scratch.n = rx.size();
+    scratch.pad();
+  }
+  void add_stats(ImageSearchStats* stats) const {
+    if (stats) {
+      stats->image_sources += local.image_sources;
+      stats->tests += local.tests;
     }
   }
 
+ protected:
+  const TraceScene& scene;
+  const ImageFaces& faces;
+  const std::vector<Node>& nodes;
+  const std::vector<std::uint32_t>& receivers;
+  std::vector<ImageCandidate>& out;
+  const Vec3 xs;
+  // Everything relative to the source: the source is the origin.
+  Receivers rx, scratch;
+  ImageSearchStats local;
+
+  bool on_face(std::size_t f, const Vec3& p) const {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  }
+};
+
+// image_candidates' search, one method per kind of sequence.
+class ImageSearch : public SourceSearch {
+ public:
+  ImageSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+              const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+      : SourceSearch(scene, faces, nodes, src, receivers, out),
+        src(src),
+        higher_from(
+            static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin())) {}
+
+  // Order 1, static faces (towards higher receivers).
+  void static_order1() {
+    for (std::size_t f = 0; f < faces.static_count; ++f) {
+      const Plane& pl = faces.planes[f];
+      const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
+      const double ds = -off;                              // the source's signed distance
+      if (ds == 0) continue;  // the source on the plane sees no image
+      const Vec3 img = (-2 * ds) * pl.normal;
+      ++local.image_sources;
+      local.tests += rx.size();
+      if (!mark_crossings(rx, higher_from, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs,
+                          faces.tol[f], scratch))
+        continue;
+      for (std::size_t r = higher_from; r < rx.size(); ++r) {
+        if (!scratch.hit[r]) continue;
+        const Vec3 xr = receiver(r);
+        const double d = dot(pl.normal, xr) - pl.offset;
+        if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d)))
+          out.push_back({receivers[r], {faces.refs[f]}});
+      }
+    }
+  }
+
+  // Order 1, vehicle faces, through their normals (towards higher receivers).
+  void vehicle_order1() {
+    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
+      for (std::size_t r = higher_from; r < rx.size(); ++r)
+        vehicle_reflections(v, xs, r,
+                            [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
+  }
+
+  // Order 2, ground then vehicle (towards every receiver: from the other
+  // end it is vehicle then ground).
+  void ground_then_vehicle() {
+    for (std::uint32_t g : faces.ground) {
+      const Plane& pg = faces.planes[g];
+      const double ds = dot(pg.normal, xs) - pg.offset;
+      if (ds == 0) continue;
+      const Vec3 i1 = xs - (2 * ds) * pg.normal;
+      for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+        const auto& sv = faces.vehicle_spheres[v];
+        const double h = dot(pg.normal, sv.centre) - pg.offset;
+        if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
+        for (std::size_t r = 0; r < rx.size(); ++r)
+          vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
+            const double d2 = dot(pg.normal, q2) - pg.offset;
+            if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
+              out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+          });
+      }
+    }
+  }
+
+  // Orders 2 and 3 on one vehicle (its concave parts: hood and windscreen,
+  // a truck's cab and box), towards every receiver not riding it: the face
+  // sequences its model's table lists for the direction the wave arrives
+  // from, each decided by its images and on-face tests. Not for the
+  // source's own vehicle (the source sits inside its sphere).
+  void on_one_vehicle(int max_order) {
+    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+      if (static_cast<int>(v) == nodes[src].vehicle) continue;
+      const auto& sv = faces.vehicle_spheres[v];
+      const Vec3 w = sv.centre - xs;
+      const double dist = norm(w);
+      if (dist <= sv.radius) continue;
+      const auto query = scene.vehicle_bounce_sequences(v, (1.0 / dist) * w, std::asin(sv.radius / dist));
+      for (const std::uint32_t id : *query.ids) {
+        const auto& sq = (*query.table)[id];
+        if (sq.order > max_order) continue;
+        bounce_sequence(v, sq);
+      }
+    }
+  }
+
+  // Order 2 over static faces: image I1 of the source in f1, then the image
+  // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
+  // that point must cross f1.
+  //
+  // Order 3 through the ground (a static face, the ground and another, in
+  // any order) with `ground3`, which shoot and bounce misses most of (a
+  // wall's beam bent down by the ground passes the receivers' spheres at
+  // grazing angles):
+  // - the ground last: the receiver's image in the ground plane sees I2
+  //   through f2, and the line from f2 to the receiver crosses the ground
+  //   face. The mirrored receivers join the same vectorised pass, towards
+  //   every receiver, so that the other end's search gives the ground first;
+  // - the ground between f1 and f2: the beam f1 reflects, mirrored in the
+  //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
+  //   beam does, and I2 is the image of I1' in f2.
+  void static_pairs(bool ground3) {
+    static const std::vector<std::uint32_t> no_faces;
+    grounds = ground3 ? &faces.ground : &no_faces;
+    mirror_receivers();
+    for (std::uint32_t f1 = 0; f1 < faces.static_count; ++f1) from_first_face(f1);
+  }
+
+ private:
+  const std::uint32_t src;
+  const std::size_t higher_from;  // the first receiver above the source
+  // static_pairs' state: the ground faces for order 3 (none without it),
+  // every receiver's image in each of them (relative to the source), the
+  // beams' pyramids and the tree walk's stack.
+  const std::vector<std::uint32_t>* grounds = nullptr;
+  Receivers mirrored;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
+  std::vector<Vec3> pyramid, pyramid_g;
+  std::vector<std::uint32_t> tree_stack;
+
+  Vec3 receiver(std::size_t r) const { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; }
+
   // The reflection on face f (world plane) from point `from` to receiver r,
   // appended when its point lies on the face.
-  auto reflect_to = [&](std::size_t f, const Vec3& from, const Vec3& xr, Vec3& point) {
+  bool reflect_to(std::size_t f, const Vec3& from, const Vec3& xr, Vec3& point) {
     const Plane& pl = faces.planes[f];
     const double df = dot(pl.normal, from) - pl.offset;
     const double d = dot(pl.normal, xr) - pl.offset;
@@ -474,12 +589,13 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     ++local.tests;
     point = crossing(from - (2 * df) * pl.normal, -df, xr, d);
     return on_face(f, point);
-  };
+  }
 
   // Reflections on vehicle v's faces from `from` to receiver r: emit(face,
   // point) for each face whose reflection point lies on it, the faces taken
   // from the normal index.
-  auto vehicle_reflections = [&](std::size_t v, const Vec3& from, std::size_t r, auto&& emit) {
+  template <class Emit>
+  void vehicle_reflections(std::size_t v, const Vec3& from, std::size_t r, Emit&& emit) {
     const Vec3 xr = receiver(r);
     Vec3 m;
     double cos_delta = -1;
@@ -491,128 +607,70 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       Vec3 p;
       if (reflect_to(f, from, xr, p)) emit(f, p);
     }
-  };
-
-  // Order 1, vehicle faces, through their normals (towards higher receivers).
-  for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
-    for (std::size_t r = higher_from; r < rx.size(); ++r)
-      vehicle_reflections(v, xs, r,
-                          [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
-
-  // Order 2, ground then vehicle (towards every receiver: from the other
-  // end it is vehicle then ground).
-  for (std::uint32_t g : max_order >= 2 ? faces.ground : std::vector<std::uint32_t>{}) {
-    const Plane& pg = faces.planes[g];
-    const double ds = dot(pg.normal, xs) - pg.offset;
-    if (ds == 0) continue;
-    const Vec3 i1 = xs - (2 * ds) * pg.normal;
-    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
-      const auto& sv = faces.vehicle_spheres[v];
-      const double h = dot(pg.normal, sv.centre) - pg.offset;
-      if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
-      for (std::size_t r = 0; r < rx.size(); ++r)
-        vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
-          const double d2 = dot(pg.normal, q2) - pg.offset;
-          if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
-            out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
-        });
-    }
   }
 
-  // Orders 2 and 3 on one vehicle (its concave parts: hood and windscreen,
-  // a truck's cab and box), towards every receiver not riding it: the face
-  // sequences its model's table lists for the direction the wave arrives
-  // from, each decided by its images and on-face tests. Not for the
-  // source's own vehicle (the source sits inside its sphere).
-  for (std::size_t v = 0; multi_bounce && max_order >= 2 && v + 1 < faces.vehicle_begin.size(); ++v) {
-    if (static_cast<int>(v) == nodes[src].vehicle) continue;
-    const auto& sv = faces.vehicle_spheres[v];
-    const Vec3 w = sv.centre - xs;
-    const double dist = norm(w);
-    if (dist <= sv.radius) continue;
-    const auto query = scene.vehicle_bounce_sequences(v, (1.0 / dist) * w, std::asin(sv.radius / dist));
-    for (const std::uint32_t id : *query.ids) {
-      const auto& sq = (*query.table)[id];
-      if (sq.order > max_order) continue;
-      std::array<Vec3, 4> img;
-      std::array<std::size_t, 3> fi{};
-      img[0] = xs;
-      bool ok = true;
-      for (int k = 0; k < sq.order && ok; ++k) {
-        fi[k] = faces.vehicle_begin[v] + sq.faces[k];
-        const Plane& pl = faces.planes[fi[k]];
-        const double dk = dot(pl.normal, img[k]) - pl.offset;
-        // The image before reflection k lies on the side the face is met
-        // from (the table's rays came from there).
-        ok = ((sq.front >> k) & 1u) ? dk > 0 : dk < 0;
-        img[k + 1] = img[k] - (2 * dk) * pl.normal;
-      }
-      if (!ok) continue;
-      ++local.image_sources;
-      // The receivers whose line from the last image crosses the last face's
-      // sphere (a vectorised pass), then the exact walk back.
-      const int last = sq.order - 1;
-      const Plane& pl_last = faces.planes[fi[last]];
-      const double d_last = dot(pl_last.normal, img[last]) - pl_last.offset;
-      local.tests += rx.size();
-      if (!mark_crossings(rx, 0, pl_last, pl_last.offset - dot(pl_last.normal, xs), d_last, img[last + 1] - xs,
-                          faces.spheres[fi[last]], faces.spheres[fi[last]].centre - xs, faces.tol[fi[last]], scratch))
-        continue;
-      for (std::size_t r = 0; r < rx.size(); ++r) {
-        if (!scratch.hit[r] || nodes[receivers[r]].vehicle == static_cast<int>(v)) continue;
-        Vec3 target = receiver(r);
-        bool on = true;
-        for (int k = sq.order - 1; k >= 0 && on; --k) {
-          const Plane& pl = faces.planes[fi[k]];
-          const double di = dot(pl.normal, img[k]) - pl.offset, dt = dot(pl.normal, target) - pl.offset;
-          on = di * dt > 0;
-          if (!on) break;
-          ++local.tests;
-          const Vec3 q = crossing(img[k + 1], -di, target, dt);
-          on = on_face(fi[k], q);
-          target = q;
-        }
-        if (!on) continue;
-        ImageCandidate c{receivers[r], {}};
-        for (int k = 0; k < sq.order; ++k) c.faces.push_back(faces.refs[fi[k]]);
-        out.push_back(std::move(c));
-      }
+  // One sequence of vehicle v's table: its images, the receivers whose line
+  // from the last image crosses the last face's sphere (a vectorised pass),
+  // then the exact walk back.
+  void bounce_sequence(std::size_t v, const TraceScene::BounceSequence& sq) {
+    std::array<Vec3, 4> img;
+    std::array<std::size_t, 3> fi{};
+    img[0] = xs;
+    bool ok = true;
+    for (int k = 0; k < sq.order && ok; ++k) {
+      fi[k] = faces.vehicle_begin[v] + sq.faces[k];
+      const Plane& pl = faces.planes[fi[k]];
+      const double dk = dot(pl.normal, img[k]) - pl.offset;
+      // The image before reflection k lies on the side the face is met
+      // from (the table's rays came from there).
+      ok = ((sq.front >> k) & 1u) ? dk > 0 : dk < 0;
+      img[k + 1] = img[k] - (2 * dk) * pl.normal;
     }
-  }
-
-  // Order 2 over static faces: image I1 of the source in f1, then the image
-  // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
-  // that point must cross f1.
-  //
-  // Order 3 through the ground (a static face, the ground and another, in
-  // any order), which shoot and bounce misses most of (a wall's beam bent
-  // down by the ground passes the receivers' spheres at grazing angles):
-  // - the ground last: the receiver's image in the ground plane sees I2
-  //   through f2, and the line from f2 to the receiver crosses the ground
-  //   face. The mirrored receivers join the same vectorised pass, towards
-  //   every receiver, so that the other end's search gives the ground first;
-  // - the ground between f1 and f2: the beam f1 reflects, mirrored in the
-  //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
-  //   beam does, and I2 is the image of I1' in f2.
-  const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
-  const bool ground3 = ground_order3 && max_order >= 3 && ns > 0;
-  static const std::vector<std::uint32_t> no_faces;
-  const std::vector<std::uint32_t>& grounds = ground3 ? faces.ground : no_faces;  // no copy per f1
-  Receivers mirrored;  // every receiver's image in each ground face, relative to the source
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
-  for (std::uint32_t g : grounds) {
-    const Plane& pg = faces.planes[g];
+    if (!ok) return;
+    ++local.image_sources;
+    const int last = sq.order - 1;
+    const Plane& pl_last = faces.planes[fi[last]];
+    const double d_last = dot(pl_last.normal, img[last]) - pl_last.offset;
+    local.tests += rx.size();
+    if (!mark_crossings(rx, 0, pl_last, pl_last.offset - dot(pl_last.normal, xs), d_last, img[last + 1] - xs,
+                        faces.spheres[fi[last]], faces.spheres[fi[last]].centre - xs, faces.tol[fi[last]], scratch))
+      return;
     for (std::size_t r = 0; r < rx.size(); ++r) {
-      const Vec3 xr = receiver(r);
-      const double d = dot(pg.normal, xr) - pg.offset;
-      if (d == 0) continue;  // on the ground plane: no image
-      const Vec3 m = xr - (2 * d) * pg.normal - xs;
-      mirrored.push(m);
-      mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+      if (!scratch.hit[r] || nodes[receivers[r]].vehicle == static_cast<int>(v)) continue;
+      Vec3 target = receiver(r);
+      bool on = true;
+      for (int k = sq.order - 1; k >= 0 && on; --k) {
+        const Plane& pl = faces.planes[fi[k]];
+        const double di = dot(pl.normal, img[k]) - pl.offset, dt = dot(pl.normal, target) - pl.offset;
+        on = di * dt > 0;
+        if (!on) break;
+        ++local.tests;
+        const Vec3 q = crossing(img[k + 1], -di, target, dt);
+        on = on_face(fi[k], q);
+        target = q;
+      }
+      if (!on) continue;
+      ImageCandidate c{receivers[r], {}};
+      for (int k = 0; k < sq.order; ++k) c.faces.push_back(faces.refs[fi[k]]);
+      out.push_back(std::move(c));
     }
   }
-  std::vector<Vec3> pyramid, pyramid_g;
-  std::vector<std::uint32_t> tree_stack;
+
+  // Every receiver's image in each ground face of `grounds`.
+  void mirror_receivers() {
+    for (std::uint32_t g : *grounds) {
+      const Plane& pg = faces.planes[g];
+      for (std::size_t r = 0; r < rx.size(); ++r) {
+        const Vec3 xr = receiver(r);
+        const double d = dot(pg.normal, xr) - pg.offset;
+        if (d == 0) continue;  // on the ground plane: no image
+        const Vec3 m = xr - (2 * d) * pg.normal - xs;
+        mirrored.push(m);
+        mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+      }
+    }
+  }
+
   // The beam of f1's reflections: apex (I1, or its image in the ground),
   // the cone through f1's sphere and the pyramid through its outline.
   struct Beam {
@@ -621,10 +679,30 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     bool narrow;
     const std::vector<Vec3>* pyramid;
   };
-  for (std::uint32_t f1 = 0; f1 < ns; ++f1) {
+  // The first reflection of a static pair: face f1, the source's distance
+  // ds from its plane and its image I1 there. A reflection point accepted
+  // within tol of f1's outline moves the continuation by up to tol times
+  // (distance / |ds|) at f2: spread_per_m.
+  struct FirstBounce {
+    std::uint32_t f1;
+    const Plane& p1;
+    double ds;
+    Vec3 i1;
+    double spread_per_m;
+  };
+  // The second: face f2, the apex's distance di from its plane and its
+  // image I2 there.
+  struct SecondBounce {
+    std::uint32_t f2;
+    const Plane& p2;
+    double di;
+    Vec3 i2;
+  };
+
+  void from_first_face(std::uint32_t f1) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
-    if (ds == 0) continue;
+    if (ds == 0) return;
     const Vec3 i1 = xs - (2 * ds) * p1.normal;
     // Every continuation of a path reflected by f1 lies in the cone from I1
     // through f1 (on the source's side of f1).
@@ -634,147 +712,184 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // per outline edge (inward normals), padded by the on-face tolerance.
     pyramid.clear();
     outline_pyramid(faces, f1, i1, pyramid);
-    // A reflection point accepted within tol of f1's outline moves the
-    // continuation by up to tol times (distance / |ds|) at f2.
-    // (`spread`: a node's faces lie up to its radius farther than its centre.)
-    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
-    auto outside_beam = [&](const Beam& b, const TraceScene::Sphere& sp, double tol, double spread) {
-      // One square root for both tests (this runs for every tree node and
-      // face a beam meets); the pyramid first, as it rejects most.
-      const Vec3 w = sp.centre - b.apex;
-      const double dist = norm(w);
-      const double pad = spread_per_m * (dist + sp.radius) + tol + 1e-6 * (dist + spread);
-      for (const auto& nrm : *b.pyramid)
-        if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      if (!b.narrow || dist <= sp.radius) return false;
-      // The cone from the apex through sp against the beam's cone.
-      Cone c;
-      c.axis = (1.0 / dist) * w;
-      c.sin_h = sp.radius / dist;
-      c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
-      return !cones_overlap(b.cone, c);
-    };
-    // The second faces in beam b: down the sphere tree, groups wholly on the
-    // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
-    // it on) or outside the beam skipped whole (their faces would each fail
-    // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
-    // the rest.
-    auto walk_beam = [&](const Beam& b, const Plane& plane, double side, std::uint32_t from_face, auto&& leaf) {
-      walk_static_tree(
-          faces, tree_stack,
-          [&](const TraceScene::Sphere& sp, double tol) {
-            const double h = dot(plane.normal, sp.centre) - plane.offset;
-            if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
-            return outside_beam(b, sp, tol, sp.radius);
-          },
-          [&](std::uint32_t f2) {
-            // f2 must reach the side the beam leaves from_face on.
-            if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
-            if (outside_beam(b, faces.spheres[f2], faces.tol[f2], 0)) return;
-            leaf(f2);
-          });
-    };
-    // The image I2 of `apex` in f2 (di: the apex's distance from f2's
-    // plane); false when the apex lies on it.
-    auto image_in = [&](std::uint32_t f2, const Vec3& apex, double& di, Vec3& i2) {
-      const Plane& p2 = faces.planes[f2];
-      di = dot(p2.normal, apex) - p2.offset;
-      if (di == 0) return false;
-      i2 = apex - (2 * di) * p2.normal;
-      ++local.image_sources;
-      return true;
-    };
+    const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds)};
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
-    walk_beam(beam, p1, ds, f1, [&](std::uint32_t f2) {
-      const auto& s2 = faces.spheres[f2];
-      const Plane& p2 = faces.planes[f2];
-      double di;
-      Vec3 i2;
-      if (!image_in(f2, i1, di, i2)) return;
-      // Relative to the source: I1 is at distance di from f2's plane.
-      const double off2 = p2.offset - dot(p2.normal, xs);
-      // q2 on f2 towards `target`, then f1 on the way back from q2.
-      auto back_to_f1 = [&](const Vec3& target, Vec3& q2) {
-        const double d = dot(p2.normal, target) - p2.offset;
-        q2 = crossing(i2, -di, target, d);
-        if (!on_face(f2, q2)) return false;
-        const double d2 = dot(p1.normal, q2) - p1.offset;
-        return ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2));
-      };
-      local.tests += rx.size();
-      if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
-        for (std::size_t r = higher_from; r < rx.size(); ++r) {
-          Vec3 q2;
-          if (scratch.hit[r] && back_to_f1(receiver(r), q2))
-            out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
-        }
-      if (mirrored.size() == 0) return;
-      local.tests += mirrored.size();
-      if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored))
-        return;
-      for (std::size_t m = 0; m < mirrored.size(); ++m) {
-        const auto [g, r] = mirrored_of[m];
-        if (!mirrored.hit[m] || g == f2) continue;
-        // Ground, f2, ground: after the first ground reflection the path
-        // leaves the ground's plane, and a face perpendicular to it (a
-        // wall) keeps that component: it never comes back.
-        if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
-        const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
-        Vec3 q2;
-        if (!back_to_f1(xm, q2)) continue;
-        // The last leg, from q2 down to the ground and up to the receiver.
-        const Plane& pg = faces.planes[g];
-        const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
-        if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
-          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
-      }
-    });
+    walk_beam(b1, beam, p1, ds, f1, [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
-    for (std::uint32_t g : grounds) {
-      if (g == f1 || !scene.static_face_reaches(f1, ds > 0 ? 1 : -1, g)) continue;
-      if (outside_beam(beam, faces.spheres[g], faces.tol[g], 0)) continue;
+    for (std::uint32_t g : *grounds) ground_between(b1, beam, g);
+  }
+
+  // Whether sphere sp (+ tol) lies outside beam b. (`spread`: a node's faces
+  // lie up to its radius farther than its centre.)
+  bool outside_beam(const FirstBounce& b1, const Beam& b, const TraceScene::Sphere& sp, double tol,
+                    double spread) const {
+    // One square root for both tests (this runs for every tree node and
+    // face a beam meets); the pyramid first, as it rejects most.
+    const Vec3 w = sp.centre - b.apex;
+    const double dist = norm(w);
+    const double pad = b1.spread_per_m * (dist + sp.radius) + tol + 1e-6 * (dist + spread);
+    for (const auto& nrm : *b.pyramid)
+      if (dot(nrm, w) < -(sp.radius + pad)) return true;
+    if (!b.narrow || dist <= sp.radius) return false;
+    // The cone from the apex through sp against the beam's cone.
+    Cone c;
+    c.axis = (1.0 / dist) * w;
+    c.sin_h = sp.radius / dist;
+    c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
+    return !cones_overlap(b.cone, c);
+  }
+
+  // The second faces in beam b: down the sphere tree, groups wholly on the
+  // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
+  // it on) or outside the beam skipped whole (their faces would each fail
+  // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
+  // the rest.
+  template <class Leaf>
+  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, std::uint32_t from_face,
+                 Leaf&& leaf) {
+    walk_static_tree(
+        faces, tree_stack,
+        [&](const TraceScene::Sphere& sp, double tol) {
+          const double h = dot(plane.normal, sp.centre) - plane.offset;
+          if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
+          return outside_beam(b1, b, sp, tol, sp.radius);
+        },
+        [&](std::uint32_t f2) {
+          // f2 must reach the side the beam leaves from_face on.
+          if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
+          if (outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0)) return;
+          leaf(f2);
+        });
+  }
+
+  // The image I2 of `apex` in f2 (di: the apex's distance from f2's
+  // plane); false when the apex lies on it.
+  bool image_in(std::uint32_t f2, const Vec3& apex, double& di, Vec3& i2) {
+    const Plane& p2 = faces.planes[f2];
+    di = dot(p2.normal, apex) - p2.offset;
+    if (di == 0) return false;
+    i2 = apex - (2 * di) * p2.normal;
+    ++local.image_sources;
+    return true;
+  }
+
+  // q2 on f2 towards `target`, then f1 on the way back from q2.
+  bool back_to_f1(const FirstBounce& b1, const SecondBounce& b2, const Vec3& target, Vec3& q2) const {
+    const Plane& p1 = b1.p1;
+    const Plane& p2 = b2.p2;
+    const double d = dot(p2.normal, target) - p2.offset;
+    q2 = crossing(b2.i2, -b2.di, target, d);
+    if (!on_face(b2.f2, q2)) return false;
+    const double d2 = dot(p1.normal, q2) - p1.offset;
+    return b1.ds * d2 > 0 && on_face(b1.f1, crossing(b1.i1, -b1.ds, q2, d2));
+  }
+
+  // Order 2 (f1, f2) towards the higher receivers, then order 3 (f1, f2,
+  // ground) towards the mirrored ones.
+  void second_face(const FirstBounce& b1, std::uint32_t f2) {
+    const std::uint32_t f1 = b1.f1;
+    const auto& s2 = faces.spheres[f2];
+    double di;
+    Vec3 i2;
+    if (!image_in(f2, b1.i1, di, i2)) return;
+    const SecondBounce b2{f2, faces.planes[f2], di, i2};
+    const Plane& p2 = b2.p2;
+    // Relative to the source: I1 is at distance di from f2's plane.
+    const double off2 = p2.offset - dot(p2.normal, xs);
+    local.tests += rx.size();
+    if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
+      for (std::size_t r = higher_from; r < rx.size(); ++r) {
+        Vec3 q2;
+        if (scratch.hit[r] && back_to_f1(b1, b2, receiver(r), q2))
+          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+      }
+    if (mirrored.size() == 0) return;
+    local.tests += mirrored.size();
+    if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored)) return;
+    for (std::size_t m = 0; m < mirrored.size(); ++m) {
+      const auto [g, r] = mirrored_of[m];
+      if (!mirrored.hit[m] || g == f2) continue;
+      // Ground, f2, ground: after the first ground reflection the path
+      // leaves the ground's plane, and a face perpendicular to it (a
+      // wall) keeps that component: it never comes back.
+      if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
+      const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
+      Vec3 q2;
+      if (!back_to_f1(b1, b2, xm, q2)) continue;
+      // The last leg, from q2 down to the ground and up to the receiver.
       const Plane& pg = faces.planes[g];
-      const double dg = dot(pg.normal, i1) - pg.offset;
-      if (dg == 0) continue;
-      const Vec3 i1g = i1 - (2 * dg) * pg.normal;
-      auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
-      pyramid_g.clear();
-      for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
-      Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
-      bg.cone.axis = mirror(beam.cone.axis);
-      // After the ground the path runs on I1's side of it (q2 with I1).
-      walk_beam(bg, pg, dg, g, [&](std::uint32_t f2) {
-        if (f2 == g) return;
-        const auto& s2 = faces.spheres[f2];
-        const Plane& p2 = faces.planes[f2];
-        double di;
-        Vec3 i2;
-        if (!image_in(f2, i1g, di, i2)) return;
-        local.tests += rx.size() - higher_from;
-        if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
-                            faces.tol[f2], scratch))
-          return;
-        for (std::size_t r = higher_from; r < rx.size(); ++r) {
-          if (!scratch.hit[r]) continue;
-          const Vec3 xr = receiver(r);
-          const double d = dot(p2.normal, xr) - p2.offset;
-          const Vec3 q2 = crossing(i2, -di, xr, d);
-          if (!on_face(f2, q2)) continue;
-          const double dq = dot(pg.normal, q2) - pg.offset;
-          if (!(dg * dq > 0)) continue;
-          const Vec3 qg = crossing(i1g, -dg, q2, dq);
-          if (!on_face(g, qg)) continue;
-          const double d1 = dot(p1.normal, qg) - p1.offset;
-          if (ds * d1 > 0 && on_face(f1, crossing(i1, -ds, qg, d1)))
-            out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
-        }
-      });
+      const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
+      if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
     }
   }
-  if (stats) {
-    stats->image_sources += local.image_sources;
-    stats->tests += local.tests;
+
+  // Order 3 (f1, ground g, f2): f1's beam mirrored in g, when it reaches g.
+  void ground_between(const FirstBounce& b1, const Beam& beam, std::uint32_t g) {
+    const std::uint32_t f1 = b1.f1;
+    if (g == f1 || !scene.static_face_reaches(f1, b1.ds > 0 ? 1 : -1, g)) return;
+    if (outside_beam(b1, beam, faces.spheres[g], faces.tol[g], 0)) return;
+    const Plane& pg = faces.planes[g];
+    const double dg = dot(pg.normal, b1.i1) - pg.offset;
+    if (dg == 0) return;
+    const Vec3 i1g = b1.i1 - (2 * dg) * pg.normal;
+    auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
+    pyramid_g.clear();
+    for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
+    Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
+    bg.cone.axis = mirror(beam.cone.axis);
+    // After the ground the path runs on I1's side of it (q2 with I1).
+    walk_beam(b1, bg, pg, dg, g, [&](std::uint32_t f2) {
+      if (f2 != g) after_ground(b1, g, dg, i1g, f2);
+    });
   }
+
+  // Order 3 (f1, g, f2) through second face f2 of the mirrored beam (apex
+  // i1g, at distance dg from g's plane), towards the higher receivers.
+  void after_ground(const FirstBounce& b1, std::uint32_t g, double dg, const Vec3& i1g, std::uint32_t f2) {
+    const std::uint32_t f1 = b1.f1;
+    const Plane& p1 = b1.p1;
+    const Plane& pg = faces.planes[g];
+    const auto& s2 = faces.spheres[f2];
+    const Plane& p2 = faces.planes[f2];
+    double di;
+    Vec3 i2;
+    if (!image_in(f2, i1g, di, i2)) return;
+    local.tests += rx.size() - higher_from;
+    if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
+                        faces.tol[f2], scratch))
+      return;
+    for (std::size_t r = higher_from; r < rx.size(); ++r) {
+      if (!scratch.hit[r]) continue;
+      const Vec3 xr = receiver(r);
+      const double d = dot(p2.normal, xr) - p2.offset;
+      const Vec3 q2 = crossing(i2, -di, xr, d);
+      if (!on_face(f2, q2)) continue;
+      const double dq = dot(pg.normal, q2) - pg.offset;
+      if (!(dg * dq > 0)) continue;
+      const Vec3 qg = crossing(i1g, -dg, q2, dq);
+      if (!on_face(g, qg)) continue;
+      const double d1 = dot(p1.normal, qg) - p1.offset;
+      if (b1.ds * d1 > 0 && on_face(f1, crossing(b1.i1, -b1.ds, qg, d1)))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
+    }
+  }
+};
+
+}  // namespace
+
+void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                      std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
+                      bool ground_order3) {
+  if (max_order < 1 || receivers.empty()) return;
+  ImageSearch search(scene, faces, nodes, src, receivers, out);
+  search.static_order1();
+  search.vehicle_order1();
+  if (max_order >= 2) search.ground_then_vehicle();
+  if (multi_bounce && max_order >= 2) search.on_one_vehicle(max_order);
+  if (max_order >= 2) search.static_pairs(ground_order3 && max_order >= 3 && faces.static_count > 0);
+  search.add_stats(stats);
 }
 
 void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
