@@ -806,6 +806,13 @@ class ImageSearch : public SourceSearch {
     if (mirrored.size() == 0) return;
     local.tests += mirrored.size();
     if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored)) return;
+    ground_last(b1, b2);
+  }
+
+  // Order 3 (f1, f2, ground) towards the mirrored receivers marked.
+  void ground_last(const FirstBounce& b1, const SecondBounce& b2) {
+    const std::uint32_t f1 = b1.f1, f2 = b2.f2;
+    const Plane& p2 = b2.p2;
     for (std::size_t m = 0; m < mirrored.size(); ++m) {
       const auto [g, r] = mirrored_of[m];
       if (!mirrored.hit[m] || g == f2) continue;
