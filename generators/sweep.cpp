@@ -223,6 +223,12 @@ bool Sweep::needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion
   // A pair without paths has no ellipsoid to speak of, and any new path
   // is its strongest: retrace it on any move (its sources shoot anyway).
   if (c.link.path_count == 0 && !motion.moved.empty()) trace = true;
+  return trace || near_cached_paths(c, motion);
+}
+
+// Whether a moved sphere of `motion` comes near cached link c's paths.
+bool Sweep::near_cached_paths(const CachedLink& c, const Motion& motion) const {
+  bool trace = false;
   for (std::size_t s = 0; !trace && s < motion.moved.size(); ++s) {
     const Sphere& m = motion.moved[s];
     const double r = m.r + options_.cache_margin_m;

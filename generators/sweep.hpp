@@ -118,6 +118,7 @@ class Sweep {
   void pose_vehicles();
   Antennas antennas() const;
   bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
+  bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
   CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
   void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
   void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
