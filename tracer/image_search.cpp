@@ -357,9 +357,12 @@ bool outside_pyramid(const std::vector<Vec3>& planes, const Vec3& apex, const Tr
 // Marks the receivers r whose line from image `img` (signed distance -ds
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
-// face". Returns whether any is marked.
-bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, double plane_offset_rel, double ds, const Vec3& img,
-                    const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol, Receivers& scratch) {
+// face". Returns whether any is marked. Inlined at every call: a wrapper
+// call per image otherwise.
+[[gnu::always_inline]] inline bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl,
+                                                  double plane_offset_rel, double ds, const Vec3& img,
+                                                  const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol,
+                                                  Receivers& scratch) {
   const double r2 = (sphere.radius + tol) * (sphere.radius + tol);
   return mark_crossings_kernel(rx.x.data(), rx.y.data(), rx.z.data(), scratch.hit.data(), begin, rx.size(),
                                pl.normal.data(), plane_offset_rel, ds, img.data(), centre_rel.data(), r2) != 0;
@@ -452,7 +455,9 @@ class SourceSearch {
   Receivers rx, scratch;
   ImageSearchStats local;
 
-  bool on_face(std::size_t f, const Vec3& p) const {
+  // Inlined at every call (as the lambda it replaces was): it runs per
+  // candidate point, and a call costs as much as its sphere test.
+  [[gnu::always_inline]] inline bool on_face(std::size_t f, const Vec3& p) const {
     const Vec3 w = p - faces.spheres[f].centre;
     const double rr = faces.spheres[f].radius + faces.tol[f];
     return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
