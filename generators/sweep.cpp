@@ -79,256 +79,320 @@ std::vector<std::string> Sweep::object_names(const std::vector<std::string>& nod
   return names;
 }
 
-FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
+namespace {
+
+// Sorts the frame's vehicles by node; a node twice, or an RSU's node among
+// them, is an error.
+void sort_and_check(std::vector<SweepVehicle>& vehicles, const std::vector<SweepRsu>& rsus) {
   std::sort(vehicles.begin(), vehicles.end(),
             [](const SweepVehicle& a, const SweepVehicle& b) { return a.node < b.node; });
   for (std::size_t i = 1; i < vehicles.size(); ++i)
     if (vehicles[i].node == vehicles[i - 1].node)
       throw std::invalid_argument("sweep: node " + std::to_string(vehicles[i].node) + " twice in one frame");
   for (const auto& v : vehicles)
-    for (const auto& r : rsus_)
+    for (const auto& r : rsus)
       if (r.node == v.node) throw std::invalid_argument("sweep: node " + std::to_string(v.node) + " is an RSU");
+}
 
-  const bool block_start = frame_index % options_.block_frames == 0;
-  if (block_start) {
-    placed_.clear();
-    cache_.clear();
-  }
+LinkRecord link_record(const tracer::PairResult& res, std::uint32_t tx, std::uint32_t rx) {
+  LinkRecord L;
+  L.tx = tx;
+  L.rx = rx;
+  L.los_class = static_cast<std::uint8_t>(res.los_class);
+  L.blocker_count = static_cast<std::uint16_t>(std::min<std::size_t>(res.blockers.size(), 65535));
+  L.gain_coherent_db = static_cast<float>(tracer::to_db(res.stats.gain_coherent));
+  L.gain_incoherent_db = static_cast<float>(tracer::to_db(res.stats.gain_incoherent));
+  L.first_delay_s = res.stats.first_delay_s;
+  L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
+  L.path_count = static_cast<std::uint32_t>(res.paths.size());
+  L.paths_below_threshold = res.dropped_threshold;
+  L.los_class_fresnel = static_cast<std::uint8_t>(res.fresnel_class);
+  L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
+  L.vehicle_loss_db = static_cast<float>(res.vehicle_loss_db);
+  if (res.out_of_range) L.flags |= kLinkOutOfRange;
+  return L;
+}
 
-  // Update rule: which meshes move; spheres of everything that moved.
-  std::vector<Sphere> moved;
+PathRecord path_record(const tracer::Path& path) {
+  PathRecord pr;
+  pr.a = std::complex<float>(static_cast<float>(path.a.real()), static_cast<float>(path.a.imag()));
+  pr.tau_s = path.tau_s;
+  pr.theta_t = static_cast<float>(path.theta_t);
+  pr.phi_t = static_cast<float>(path.phi_t);
+  pr.theta_r = static_cast<float>(path.theta_r);
+  pr.phi_r = static_cast<float>(path.phi_r);
+  pr.doppler_hz = static_cast<float>(path.doppler_hz);
+  pr.interaction_count = static_cast<std::uint8_t>(path.interactions.size());
+  return pr;
+}
+
+}  // namespace
+
+// What changed since the last frame.
+struct Sweep::Motion {
+  std::vector<Sphere> moved;           // every moved vehicle's old and new sphere, every departed one's last
   std::vector<std::uint32_t> updated;  // sorted node ids
   bool scene_changed = false, departed = false;
-  {
-    std::map<std::uint32_t, Placed> next;
-    for (const auto& v : vehicles) {
-      auto it = placed_.find(v.node);
-      bool update = it == placed_.end();
-      if (!update) {
-        const double threshold = std::max(options_.d0_m, norm(v.velocity) * options_.coherence_time_s);
-        if (threshold == 0)
-          update = !same_pose(v, it->second.v);
-        else
-          update = norm(v.position - it->second.v.position) > threshold || v.model != it->second.v.model;
-        if (!update && !same_pose(v, it->second.v)) ++stats_.updates_deferred;
-      }
-      if (update) {
-        if (it != placed_.end()) moved.push_back(bounding_sphere(it->second.v));
-        moved.push_back(bounding_sphere(v));
-        updated.push_back(v.node);
-        next[v.node] = Placed{v};
-        ++stats_.vehicle_updates;
-        scene_changed = true;
-      } else {
-        next[v.node] = it->second;
-      }
-    }
-    for (const auto& [node, p] : placed_)
-      if (!next.count(node)) {
-        moved.push_back(bounding_sphere(p.v));
-        scene_changed = departed = true;
-      }
-    placed_ = std::move(next);
-  }
+};
 
-  // Antennas in node order, so local pair (i < j) is node pair (i < j).
-  if (scene_changed || block_start) {
-    std::vector<tracer::VehiclePose> poses;
-    for (const auto& [node, p] : placed_) {
-      const double yaw = yaw_of(p.v.heading_deg);
-      poses.push_back(tracer::VehiclePose{std::to_string(node), p.v.model, p.v.position, yaw, p.v.velocity});
-    }
-    scene_.set_vehicles(poses);
-  }
+// The frame's antennas in node order, so local pair (i < j) is node pair (i < j).
+struct Sweep::Antennas {
   std::vector<tracer::Node> nodes;
-  std::vector<std::uint32_t> node_of;  // local index -> dataset node
-  std::vector<std::uint32_t> slot_node(placed_.size());
-  {
-    std::size_t r = 0, slot = 0;
-    auto it = placed_.begin();
-    while (r < rsus_.size() || it != placed_.end()) {
-      if (it == placed_.end() || (r < rsus_.size() && rsus_[r].node < it->first)) {
-        nodes.push_back(tracer::Node{std::to_string(rsus_[r].node), rsus_[r].position, {0, 0, 0}, {1, 0, 0}, -1});
-        node_of.push_back(rsus_[r].node);
-        ++r;
-      } else {
-        nodes.push_back(tracer::Node{std::to_string(it->first), scene_.vehicle_antenna(slot), it->second.v.velocity,
+  std::vector<std::uint32_t> node_of;    // local index -> dataset node
+  std::vector<std::uint32_t> slot_node;  // vehicle slot in the scene -> dataset node
+};
+
+// The update rule: which meshes move; spheres of everything that moved.
+Sweep::Motion Sweep::place_vehicles(const std::vector<SweepVehicle>& vehicles) {
+  Motion motion;
+  std::map<std::uint32_t, Placed> next;
+  for (const auto& v : vehicles) {
+    auto it = placed_.find(v.node);
+    bool update = it == placed_.end();
+    if (!update) {
+      const double threshold = std::max(options_.d0_m, norm(v.velocity) * options_.coherence_time_s);
+      if (threshold == 0)
+        update = !same_pose(v, it->second.v);
+      else
+        update = norm(v.position - it->second.v.position) > threshold || v.model != it->second.v.model;
+      if (!update && !same_pose(v, it->second.v)) ++stats_.updates_deferred;
+    }
+    if (update) {
+      if (it != placed_.end()) motion.moved.push_back(bounding_sphere(it->second.v));
+      motion.moved.push_back(bounding_sphere(v));
+      motion.updated.push_back(v.node);
+      next[v.node] = Placed{v};
+      ++stats_.vehicle_updates;
+      motion.scene_changed = true;
+    } else {
+      next[v.node] = it->second;
+    }
+  }
+  for (const auto& [node, p] : placed_)
+    if (!next.count(node)) {
+      motion.moved.push_back(bounding_sphere(p.v));
+      motion.scene_changed = motion.departed = true;
+    }
+  placed_ = std::move(next);
+  return motion;
+}
+
+// The scene's vehicles where they were last placed, in node order.
+void Sweep::pose_vehicles() {
+  std::vector<tracer::VehiclePose> poses;
+  for (const auto& [node, p] : placed_) {
+    const double yaw = yaw_of(p.v.heading_deg);
+    poses.push_back(tracer::VehiclePose{std::to_string(node), p.v.model, p.v.position, yaw, p.v.velocity});
+  }
+  scene_.set_vehicles(poses);
+}
+
+Sweep::Antennas Sweep::antennas() const {
+  Antennas a;
+  a.slot_node.resize(placed_.size());
+  std::size_t r = 0, slot = 0;
+  auto it = placed_.begin();
+  while (r < rsus_.size() || it != placed_.end()) {
+    if (it == placed_.end() || (r < rsus_.size() && rsus_[r].node < it->first)) {
+      a.nodes.push_back(tracer::Node{std::to_string(rsus_[r].node), rsus_[r].position, {0, 0, 0}, {1, 0, 0}, -1});
+      a.node_of.push_back(rsus_[r].node);
+      ++r;
+    } else {
+      a.nodes.push_back(tracer::Node{std::to_string(it->first), scene_.vehicle_antenna(slot), it->second.v.velocity,
                                      scene_.vehicle_forward(slot), static_cast<int>(slot)});
-        node_of.push_back(it->first);
-        slot_node[slot] = it->first;
-        ++slot;
-        ++it;
-      }
+      a.node_of.push_back(it->first);
+      a.slot_node[slot] = it->first;
+      ++slot;
+      ++it;
     }
   }
+  return a;
+}
 
-  // Which pairs to trace.
-  const auto n = static_cast<std::uint32_t>(nodes.size());
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> all, todo;
-  for (std::uint32_t i = 0; i < n; ++i)
-    for (std::uint32_t j = i + 1; j < n; ++j) all.emplace_back(i, j);
-  for (const auto& [i, j] : all) {
-    auto it = cache_.find(pair_key(node_of[i], node_of[j]));
-    bool trace = it == cache_.end() || options_.cache == CacheMode::none;
-    if (!trace && options_.cache == CacheMode::global) trace = !moved.empty();
-    if (!trace && options_.cache == CacheMode::per_pair) {
-      trace = std::binary_search(updated.begin(), updated.end(), node_of[i]) ||
-              std::binary_search(updated.begin(), updated.end(), node_of[j]);
-      const auto& c = it->second;
-      // A pair without paths has no ellipsoid to speak of, and any new path
-      // is its strongest: retrace it on any move (its sources shoot anyway).
-      if (c.link.path_count == 0 && !moved.empty()) trace = true;
-      for (std::size_t s = 0; !trace && s < moved.size(); ++s) {
-        const Sphere& m = moved[s];
-        const double r = m.r + options_.cache_margin_m;
-        // A path near the vehicle may be blocked, moved or gone; a vehicle
-        // inside the strong ellipsoid may add a path as strong as the best.
-        if (norm(m.c - c.a) + norm(m.c - c.b) - 2 * m.r <= c.reach) {
-          trace = true;
-          break;
-        }
-        bool outside = false;
-        for (int k = 0; k < 3; ++k) outside |= m.c[k] < c.lo[k] - r || m.c[k] > c.hi[k] + r;
-        if (outside) continue;
-        std::size_t q = 0;
-        for (const auto n : c.path_points) {
-          for (std::size_t e = q; !trace && e + 1 < q + n; ++e)
-            trace = segment_distance(m.c, c.points[e], c.points[e + 1]) <= r;
-          q += n;
-        }
-      }
+// Whether the pair of dataset nodes (a, b) must be traced again: not cached,
+// or its cached paths may have changed by `motion` (the cache mode's rule).
+bool Sweep::needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const {
+  auto it = cache_.find(pair_key(node_a, node_b));
+  bool trace = it == cache_.end() || options_.cache == CacheMode::none;
+  if (!trace && options_.cache == CacheMode::global) trace = !motion.moved.empty();
+  if (trace || options_.cache != CacheMode::per_pair) return trace;
+  const auto& updated = motion.updated;
+  trace = std::binary_search(updated.begin(), updated.end(), node_a) ||
+          std::binary_search(updated.begin(), updated.end(), node_b);
+  const auto& c = it->second;
+  // A pair without paths has no ellipsoid to speak of, and any new path
+  // is its strongest: retrace it on any move (its sources shoot anyway).
+  if (c.link.path_count == 0 && !motion.moved.empty()) trace = true;
+  return trace || near_cached_paths(c, motion);
+}
+
+// Whether a moved sphere of `motion` comes near cached link c's paths.
+bool Sweep::near_cached_paths(const CachedLink& c, const Motion& motion) const {
+  bool trace = false;
+  for (std::size_t s = 0; !trace && s < motion.moved.size(); ++s) {
+    const Sphere& m = motion.moved[s];
+    const double r = m.r + options_.cache_margin_m;
+    // A path near the vehicle may be blocked, moved or gone; a vehicle
+    // inside the strong ellipsoid may add a path as strong as the best.
+    if (norm(m.c - c.a) + norm(m.c - c.b) - 2 * m.r <= c.reach) {
+      trace = true;
+      break;
     }
-    if (trace) todo.emplace_back(i, j);
+    bool outside = false;
+    for (int k = 0; k < 3; ++k) outside |= m.c[k] < c.lo[k] - r || m.c[k] > c.hi[k] + r;
+    if (outside) continue;
+    std::size_t q = 0;
+    for (const auto n : c.path_points) {
+      for (std::size_t e = q; !trace && e + 1 < q + n; ++e)
+        trace = segment_distance(m.c, c.points[e], c.points[e + 1]) <= r;
+      q += n;
+    }
   }
+  return trace;
+}
 
-  const auto t0 = std::chrono::steady_clock::now();
-  const tracer::Snapshot snap = tracer::trace_pairs(scene_, nodes, todo, tracer_, radio_);
-  stats_.trace_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  stats_.rays += snap.stats.rays;
-
+// A traced pair as the cache keeps it: its records and what decides when it
+// must be traced again.
+Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const {
+  const auto [i, j] = pair;
   const std::uint32_t statics = scene_.static_object_count();
   const double c0 = tracer::kSpeedOfLight;
-  for (std::size_t p = 0; p < todo.size(); ++p) {
-    const auto& res = snap.pairs[p];
-    const auto [i, j] = todo[p];
-    CachedLink c;
-    c.a = nodes[i].position;
-    c.b = nodes[j].position;
-    // The direct segment is a "path" for invalidation: a vehicle crossing it
-    // changes the LoS class.
-    double strongest_len = norm(c.a - c.b), strongest = -1;
-    c.points = {c.a, c.b};
-    c.path_points = {2};
-    auto& L = c.link;
-    L.tx = node_of[i];
-    L.rx = node_of[j];
-    L.los_class = static_cast<std::uint8_t>(res.los_class);
-    L.blocker_count = static_cast<std::uint16_t>(std::min<std::size_t>(res.blockers.size(), 65535));
-    L.gain_coherent_db = static_cast<float>(tracer::to_db(res.stats.gain_coherent));
-    L.gain_incoherent_db = static_cast<float>(tracer::to_db(res.stats.gain_incoherent));
-    L.first_delay_s = res.stats.first_delay_s;
-    L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
-    L.path_count = static_cast<std::uint32_t>(res.paths.size());
-    L.paths_below_threshold = res.dropped_threshold;
-    L.los_class_fresnel = static_cast<std::uint8_t>(res.fresnel_class);
-    L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
-    L.vehicle_loss_db = static_cast<float>(res.vehicle_loss_db);
-    if (res.out_of_range) L.flags |= kLinkOutOfRange;
-    for (const auto& path : res.paths) {
-      if (std::norm(path.a) > strongest) {
-        strongest = std::norm(path.a);
-        strongest_len = path.tau_s * c0;
-      }
-      c.points.push_back(c.a);
-      for (const auto& in : path.interactions) c.points.push_back(in.point);
-      c.points.push_back(c.b);
-      c.path_points.push_back(static_cast<std::uint32_t>(path.interactions.size() + 2));
-      PathRecord pr;
-      pr.a = std::complex<float>(static_cast<float>(path.a.real()), static_cast<float>(path.a.imag()));
-      pr.tau_s = path.tau_s;
-      pr.theta_t = static_cast<float>(path.theta_t);
-      pr.phi_t = static_cast<float>(path.phi_t);
-      pr.theta_r = static_cast<float>(path.theta_r);
-      pr.phi_r = static_cast<float>(path.phi_r);
-      pr.doppler_hz = static_cast<float>(path.doppler_hz);
-      pr.interaction_count = static_cast<std::uint8_t>(path.interactions.size());
-      c.paths.push_back(pr);
-      for (const auto& in : path.interactions) {
-        InteractionRecord ir;
-        ir.type = static_cast<std::uint8_t>(in.type);
-        ir.object = in.object < statics ? in.object : statics + slot_node.at(in.object - statics);
-        ir.x = static_cast<float>(in.point[0]);
-        ir.y = static_cast<float>(in.point[1]);
-        ir.z = static_cast<float>(in.point[2]);
-        c.interactions.push_back(ir);
-      }
+  CachedLink c;
+  c.a = antennas.nodes[i].position;
+  c.b = antennas.nodes[j].position;
+  // The direct segment is a "path" for invalidation: a vehicle crossing it
+  // changes the LoS class.
+  double strongest_len = norm(c.a - c.b), strongest = -1;
+  c.points = {c.a, c.b};
+  c.path_points = {2};
+  c.link = link_record(res, antennas.node_of[i], antennas.node_of[j]);
+  for (const auto& path : res.paths) {
+    if (std::norm(path.a) > strongest) {
+      strongest = std::norm(path.a);
+      strongest_len = path.tau_s * c0;
     }
-    // The first Fresnel zone (the LoS label) lies within d + lambda / 2.
-    c.reach = std::max(strongest_len, norm(c.a - c.b) + 0.5 * tracer::kSpeedOfLight / radio_.frequency_hz) +
-              options_.cache_margin_m;
-    c.lo = c.hi = c.a;
-    for (const auto& p : c.points)
-      for (int k = 0; k < 3; ++k) {
-        c.lo[k] = std::min(c.lo[k], p[k]);
-        c.hi[k] = std::max(c.hi[k], p[k]);
-      }
-    if (options_.cfr)
-      for (const auto& h : tracer::frequency_response(res.paths, *options_.cfr))
-        c.cfr.emplace_back(static_cast<float>(h.real()), static_cast<float>(h.imag()));
-    cache_[pair_key(L.tx, L.rx)] = std::move(c);
+    c.points.push_back(c.a);
+    for (const auto& in : path.interactions) c.points.push_back(in.point);
+    c.points.push_back(c.b);
+    c.path_points.push_back(static_cast<std::uint32_t>(path.interactions.size() + 2));
+    c.paths.push_back(path_record(path));
+    for (const auto& in : path.interactions) {
+      InteractionRecord ir;
+      ir.type = static_cast<std::uint8_t>(in.type);
+      ir.object = in.object < statics ? in.object : statics + antennas.slot_node.at(in.object - statics);
+      ir.x = static_cast<float>(in.point[0]);
+      ir.y = static_cast<float>(in.point[1]);
+      ir.z = static_cast<float>(in.point[2]);
+      c.interactions.push_back(ir);
+    }
   }
+  // The first Fresnel zone (the LoS label) lies within d + lambda / 2.
+  c.reach = std::max(strongest_len, norm(c.a - c.b) + 0.5 * tracer::kSpeedOfLight / radio_.frequency_hz) +
+            options_.cache_margin_m;
+  c.lo = c.hi = c.a;
+  for (const auto& p : c.points)
+    for (int k = 0; k < 3; ++k) {
+      c.lo[k] = std::min(c.lo[k], p[k]);
+      c.hi[k] = std::max(c.hi[k], p[k]);
+    }
+  if (options_.cfr)
+    for (const auto& h : tracer::frequency_response(res.paths, *options_.cfr))
+      c.cfr.emplace_back(static_cast<float>(h.real()), static_cast<float>(h.imag()));
+  return c;
+}
 
-  FrameRecord frame;
-  frame.time_s = time_s;
-  {
-    std::size_t r = 0;
-    auto v = vehicles.begin();
-    while (r < rsus_.size() || v != vehicles.end()) {
-      NodeState s;
-      if (v == vehicles.end() || (r < rsus_.size() && rsus_[r].node < v->node)) {
-        s.node = rsus_[r].node;
-        s.x = rsus_[r].position[0];
-        s.y = rsus_[r].position[1];
-        s.z = rsus_[r].position[2];
-        ++r;
-      } else {
-        s.node = v->node;
-        s.x = v->position[0];
-        s.y = v->position[1];
-        s.z = v->position[2];
-        s.vx = static_cast<float>(v->velocity[0]);
-        s.vy = static_cast<float>(v->velocity[1]);
-        s.vz = static_cast<float>(v->velocity[2]);
-        s.heading_deg = static_cast<float>(v->heading_deg);
-        ++v;
-      }
-      frame.nodes.push_back(s);
+// Every node's state (RSUs and `vehicles`, sorted), in node order.
+void Sweep::append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const {
+  std::size_t r = 0;
+  auto v = vehicles.begin();
+  while (r < rsus_.size() || v != vehicles.end()) {
+    NodeState s;
+    if (v == vehicles.end() || (r < rsus_.size() && rsus_[r].node < v->node)) {
+      s.node = rsus_[r].node;
+      s.x = rsus_[r].position[0];
+      s.y = rsus_[r].position[1];
+      s.z = rsus_[r].position[2];
+      ++r;
+    } else {
+      s.node = v->node;
+      s.x = v->position[0];
+      s.y = v->position[1];
+      s.z = v->position[2];
+      s.vx = static_cast<float>(v->velocity[0]);
+      s.vy = static_cast<float>(v->velocity[1]);
+      s.vz = static_cast<float>(v->velocity[2]);
+      s.heading_deg = static_cast<float>(v->heading_deg);
+      ++v;
     }
+    frame.nodes.push_back(s);
   }
+}
+
+// Every pair's records from the cache, in pair order; those not in `traced`
+// (a subsequence of `all`) flagged as cached.
+void Sweep::append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
+                         const std::vector<std::uint32_t>& node_of, FrameRecord& frame) {
   std::size_t next_traced = 0;
   for (const auto& [i, j] : all) {
-    const bool traced = next_traced < todo.size() && todo[next_traced] == std::make_pair(i, j);
-    if (traced) ++next_traced;
+    const bool is_traced = next_traced < traced.size() && traced[next_traced] == std::make_pair(i, j);
+    if (is_traced) ++next_traced;
     const auto& c = cache_.at(pair_key(node_of[i], node_of[j]));
     LinkRecord link = c.link;
-    if (!traced) link.flags |= kLinkCached;
+    if (!is_traced) link.flags |= kLinkCached;
     frame.links.push_back(link);
     frame.paths.insert(frame.paths.end(), c.paths.begin(), c.paths.end());
     frame.interactions.insert(frame.interactions.end(), c.interactions.begin(), c.interactions.end());
     frame.cfr.insert(frame.cfr.end(), c.cfr.begin(), c.cfr.end());
     stats_.paths += c.paths.size();
   }
-  // Pairs whose nodes left are of no further use.
-  if (departed) {
-    for (auto it = cache_.begin(); it != cache_.end();) {
-      const auto a = static_cast<std::uint32_t>(it->first >> 32), b = static_cast<std::uint32_t>(it->first);
-      auto present = [&](std::uint32_t x) {
-        return placed_.count(x) ||
-               std::any_of(rsus_.begin(), rsus_.end(), [x](const SweepRsu& r) { return r.node == x; });
-      };
-      it = present(a) && present(b) ? std::next(it) : cache_.erase(it);
-    }
+}
+
+// Pairs whose nodes left are of no further use.
+void Sweep::forget_departed() {
+  for (auto it = cache_.begin(); it != cache_.end();) {
+    const auto a = static_cast<std::uint32_t>(it->first >> 32), b = static_cast<std::uint32_t>(it->first);
+    auto present = [&](std::uint32_t x) {
+      return placed_.count(x) ||
+             std::any_of(rsus_.begin(), rsus_.end(), [x](const SweepRsu& r) { return r.node == x; });
+    };
+    it = present(a) && present(b) ? std::next(it) : cache_.erase(it);
   }
+}
+
+FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
+  sort_and_check(vehicles, rsus_);
+  const bool block_start = frame_index % options_.block_frames == 0;
+  if (block_start) {
+    placed_.clear();
+    cache_.clear();
+  }
+  const Motion motion = place_vehicles(vehicles);
+  if (motion.scene_changed || block_start) pose_vehicles();
+  const Antennas ant = antennas();
+
+  // Which pairs to trace.
+  const auto n = static_cast<std::uint32_t>(ant.nodes.size());
+  std::vector<NodePair> all, todo;
+  for (std::uint32_t i = 0; i < n; ++i)
+    for (std::uint32_t j = i + 1; j < n; ++j) all.emplace_back(i, j);
+  for (const auto& [i, j] : all)
+    if (needs_trace(ant.node_of[i], ant.node_of[j], motion)) todo.emplace_back(i, j);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const tracer::Snapshot snap = tracer::trace_pairs(scene_, ant.nodes, todo, tracer_, radio_);
+  stats_.trace_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  stats_.rays += snap.stats.rays;
+  for (std::size_t p = 0; p < todo.size(); ++p) {
+    CachedLink c = cache_link(snap.pairs[p], ant, todo[p]);
+    const std::uint64_t key = pair_key(c.link.tx, c.link.rx);
+    cache_[key] = std::move(c);
+  }
+
+  FrameRecord frame;
+  frame.time_s = time_s;
+  append_nodes(vehicles, frame);
+  append_links(all, todo, ant.node_of, frame);
+  if (motion.departed) forget_departed();
   ++stats_.frames;
   stats_.links += all.size();
   stats_.traced_links += todo.size();

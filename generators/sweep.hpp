@@ -29,6 +29,7 @@
 #include <map>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "generators/dataset.hpp"
@@ -109,6 +110,20 @@ class Sweep {
     std::vector<std::uint32_t> path_points;   // polyline sizes
     tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point
   };
+  // step()'s phases (the two structs are defined in sweep.cpp).
+  struct Motion;
+  struct Antennas;
+  using NodePair = std::pair<std::uint32_t, std::uint32_t>;  // local antenna indices, first < second
+  Motion place_vehicles(const std::vector<SweepVehicle>& vehicles);
+  void pose_vehicles();
+  Antennas antennas() const;
+  bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
+  bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
+  CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
+  void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
+  void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
+                    const std::vector<std::uint32_t>& node_of, FrameRecord& frame);
+  void forget_departed();
 
   tracer::TraceScene& scene_;
   tracer::TracerConfig tracer_;

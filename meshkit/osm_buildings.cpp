@@ -97,94 +97,80 @@ std::optional<std::vector<std::vector<NodeId>>> join_rings(std::vector<std::vect
   return rings;
 }
 
-}  // namespace
-
-OsmBuildings read_osm_buildings(const std::string& path, const Projector& project) {
-  OsmBuildings out;
+// What one pass over the file keeps: every node's location, every way's
+// nodes, and the ways and relations tagged as buildings.
+struct PendingWay {
+  NodeId id;
+  OsmBuilding b;
+  std::vector<NodeId> ring;
+};
+struct Member {
+  NodeId way;
+  std::string role;
+};
+struct PendingRelation {
+  NodeId id;
+  OsmBuilding b;
+  std::vector<Member> members;
+};
+struct RawOsm {
   std::unordered_map<NodeId, osmium::Location> nodes;
   std::unordered_map<NodeId, WayRec> ways;
-  struct PendingWay {
-    NodeId id;
-    OsmBuilding b;
-    std::vector<NodeId> ring;
-  };
-  struct Member {
-    NodeId way;
-    std::string role;
-  };
-  struct PendingRelation {
-    NodeId id;
-    OsmBuilding b;
-    std::vector<Member> members;
-  };
   std::vector<PendingWay> building_ways;
   std::vector<PendingRelation> building_relations;
-
   double min_lon = std::numeric_limits<double>::infinity(), min_lat = min_lon;
   double max_lon = -min_lon, max_lat = -min_lon;
+};
 
+void read_node(const osmium::Node& n, OsmBuildings& out, RawOsm& raw) {
+  ++out.nodes;
+  if (!n.location().valid()) return;
+  raw.nodes[n.id()] = n.location();
+  raw.min_lon = std::min(raw.min_lon, n.location().lon());
+  raw.max_lon = std::max(raw.max_lon, n.location().lon());
+  raw.min_lat = std::min(raw.min_lat, n.location().lat());
+  raw.max_lat = std::max(raw.max_lat, n.location().lat());
+}
+
+void read_way(const osmium::Way& w, const std::string& path, OsmBuildings& out, RawOsm& raw) {
+  ++out.ways;
+  WayRec rec;
+  for (const auto& nr : w.nodes()) rec.nodes.push_back(nr.ref());
+  check_tag_list(w.tags(), path, "way/" + std::to_string(w.id()));
+  bool part = false;
+  if (is_building(w.tags(), part)) {
+    PendingWay pw{w.id(), {}, rec.nodes};
+    pw.b.source_id = "way/" + std::to_string(w.id());
+    pw.b.is_part = part;
+    copy_tags(w.tags(), pw.b);
+    raw.building_ways.push_back(std::move(pw));
+  }
+  raw.ways.emplace(w.id(), std::move(rec));
+}
+
+void read_relation(const osmium::Relation& r, const std::string& path, OsmBuildings& out, RawOsm& raw) {
+  ++out.relations;
+  check_tag_list(r.tags(), path, "relation/" + std::to_string(r.id()));
+  const char* type = r.tags().get_value_by_key("type");
+  bool part = false;
+  if (!type || (std::string_view(type) != "multipolygon" && std::string_view(type) != "building")) return;
+  if (!is_building(r.tags(), part)) return;
+  if (std::string_view(type) == "building") return;  // grouping relation; its ways carry the geometry
+  PendingRelation pr{r.id(), {}, {}};
+  pr.b.source_id = "relation/" + std::to_string(r.id());
+  pr.b.is_part = part;
+  copy_tags(r.tags(), pr.b);
+  for (const auto& m : r.members())
+    if (m.type() == osmium::item_type::way) pr.members.push_back({m.ref(), m.role()});
+  raw.building_relations.push_back(std::move(pr));
+}
+
+// Runs `read`, turning what libosmium and protozero throw into InputError
+// naming the file.
+template <class Read>
+void with_input_errors(const std::string& path, Read&& read) {
   try {
-    osmium::io::File file(path);
-    // PBF is read from memory: libosmium 2.19 leaks the file's descriptor when a
-    // PBF block is corrupt (one per failed read, found by tests/fuzz/fuzz_osm_pbf),
-    // and PBF extracts are compact. XML streams from the file as before.
-    std::string pbf;
-    if (file.format() == osmium::io::file_format::pbf) {
-      std::ifstream in(path, std::ios::binary);
-      if (!in) throw InputError(path, "", "cannot open OSM file");
-      pbf.assign(std::istreambuf_iterator<char>(in), {});
-      if (in.bad()) throw InputError(path, "", "cannot read OSM file");
-      file = osmium::io::File(pbf.data(), pbf.size(), "pbf");
-    }
-    osmium::io::Reader reader(file, osmium::osm_entity_bits::node | osmium::osm_entity_bits::way |
-                                        osmium::osm_entity_bits::relation);
-    while (osmium::memory::Buffer buffer = reader.read()) {
-      for (const auto& item : buffer) {
-        if (item.type() == osmium::item_type::node) {
-          const auto& n = static_cast<const osmium::Node&>(item);
-          ++out.nodes;
-          if (!n.location().valid()) continue;
-          nodes[n.id()] = n.location();
-          min_lon = std::min(min_lon, n.location().lon());
-          max_lon = std::max(max_lon, n.location().lon());
-          min_lat = std::min(min_lat, n.location().lat());
-          max_lat = std::max(max_lat, n.location().lat());
-        } else if (item.type() == osmium::item_type::way) {
-          const auto& w = static_cast<const osmium::Way&>(item);
-          ++out.ways;
-          WayRec rec;
-          for (const auto& nr : w.nodes()) rec.nodes.push_back(nr.ref());
-          check_tag_list(w.tags(), path, "way/" + std::to_string(w.id()));
-          bool part = false;
-          if (is_building(w.tags(), part)) {
-            PendingWay pw{w.id(), {}, rec.nodes};
-            pw.b.source_id = "way/" + std::to_string(w.id());
-            pw.b.is_part = part;
-            copy_tags(w.tags(), pw.b);
-            building_ways.push_back(std::move(pw));
-          }
-          ways.emplace(w.id(), std::move(rec));
-        } else if (item.type() == osmium::item_type::relation) {
-          const auto& r = static_cast<const osmium::Relation&>(item);
-          ++out.relations;
-          check_tag_list(r.tags(), path, "relation/" + std::to_string(r.id()));
-          const char* type = r.tags().get_value_by_key("type");
-          bool part = false;
-          if (!type || (std::string_view(type) != "multipolygon" && std::string_view(type) != "building"))
-            continue;
-          if (!is_building(r.tags(), part)) continue;
-          if (std::string_view(type) == "building") continue;  // grouping relation; its ways carry the geometry
-          PendingRelation pr{r.id(), {}, {}};
-          pr.b.source_id = "relation/" + std::to_string(r.id());
-          pr.b.is_part = part;
-          copy_tags(r.tags(), pr.b);
-          for (const auto& m : r.members())
-            if (m.type() == osmium::item_type::way) pr.members.push_back({m.ref(), m.role()});
-          building_relations.push_back(std::move(pr));
-        }
-      }
-    }
-    reader.close();
+    read();
   } catch (const InputError&) {
     throw;  // already names the file and element
   } catch (const osmium::xml_error& e) {
@@ -207,38 +193,68 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
     // exceptions derive from std::exception only (found by tests/fuzz/fuzz_osm_pbf).
     throw InputError(path, "", std::string("corrupt OSM PBF data: ") + e.what());
   }
-  if (out.nodes > 0 && std::isfinite(min_lon)) {
-    out.min_lon = min_lon;
-    out.min_lat = min_lat;
-    out.max_lon = max_lon;
-    out.max_lat = max_lat;
-  }
+}
 
-  // Projects a ring of node ids; missing nodes are counted, not guessed.
-  auto project_ring = [&](const std::vector<NodeId>& ids, std::size_t& missing) {
-    std::vector<Vec2> pts;
-    pts.reserve(ids.size());
-    for (NodeId id : ids) {
-      auto it = nodes.find(id);
-      if (it == nodes.end()) {
-        ++missing;
-        continue;
-      }
-      pts.push_back(project(it->second.lon(), it->second.lat()));
+// One pass over the file: nodes, ways and relations into `raw`, their counts
+// into `out`.
+void read_elements(const std::string& path, OsmBuildings& out, RawOsm& raw) {
+  with_input_errors(path, [&] {
+    osmium::io::File file(path);
+    // PBF is read from memory: libosmium 2.19 leaks the file's descriptor when a
+    // PBF block is corrupt (one per failed read, found by tests/fuzz/fuzz_osm_pbf),
+    // and PBF extracts are compact. XML streams from the file.
+    std::string pbf;
+    if (file.format() == osmium::io::file_format::pbf) {
+      std::ifstream in(path, std::ios::binary);
+      if (!in) throw InputError(path, "", "cannot open OSM file");
+      pbf.assign(std::istreambuf_iterator<char>(in), {});
+      if (in.bad()) throw InputError(path, "", "cannot read OSM file");
+      file = osmium::io::File(pbf.data(), pbf.size(), "pbf");
     }
-    return pts;
-  };
+    osmium::io::Reader reader(file, osmium::osm_entity_bits::node | osmium::osm_entity_bits::way |
+                                        osmium::osm_entity_bits::relation);
+    while (osmium::memory::Buffer buffer = reader.read()) {
+      for (const auto& item : buffer) {
+        if (item.type() == osmium::item_type::node)
+          read_node(static_cast<const osmium::Node&>(item), out, raw);
+        else if (item.type() == osmium::item_type::way)
+          read_way(static_cast<const osmium::Way&>(item), path, out, raw);
+        else if (item.type() == osmium::item_type::relation)
+          read_relation(static_cast<const osmium::Relation&>(item), path, out, raw);
+      }
+    }
+    reader.close();
+  });
+}
 
-  // Relations first: their tagged outer ways must not be drawn twice.
-  std::unordered_set<NodeId> relation_outer_ways;
-  for (auto& pr : building_relations) {
+// Projects a ring of node ids; missing nodes are counted, not guessed.
+std::vector<Vec2> project_ring(const RawOsm& raw, const Projector& project, const std::vector<NodeId>& ids,
+                               std::size_t& missing) {
+  std::vector<Vec2> pts;
+  pts.reserve(ids.size());
+  for (NodeId id : ids) {
+    auto it = raw.nodes.find(id);
+    if (it == raw.nodes.end()) {
+      ++missing;
+      continue;
+    }
+    pts.push_back(project(it->second.lon(), it->second.lat()));
+  }
+  return pts;
+}
+
+// The building multipolygons, each as a building or a skip; their outer
+// ways into `outer_ways` (not to be drawn twice).
+void assemble_relations(RawOsm& raw, const Projector& project, OsmBuildings& out,
+                        std::unordered_set<NodeId>& outer_ways) {
+  for (auto& pr : raw.building_relations) {
     const std::string& id = pr.b.source_id;
     std::vector<std::vector<NodeId>> outer_segs, inner_segs;
     std::size_t absent = 0;
     std::vector<NodeId> outer_way_ids;
     for (const auto& m : pr.members) {
-      auto it = ways.find(m.way);
-      if (it == ways.end()) {
+      auto it = raw.ways.find(m.way);
+      if (it == raw.ways.end()) {
         ++absent;
         continue;
       }
@@ -258,16 +274,21 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
       continue;
     }
     std::size_t missing = 0;
-    for (const auto& r : *outer_rings) pr.b.outers.push_back(project_ring(r, missing));
-    for (const auto& r : *inner_rings) pr.b.inners.push_back(project_ring(r, missing));
+    for (const auto& r : *outer_rings) pr.b.outers.push_back(project_ring(raw, project, r, missing));
+    for (const auto& r : *inner_rings) pr.b.inners.push_back(project_ring(raw, project, r, missing));
     if (missing) {
       out.skipped.push_back({id, "missing_nodes", std::to_string(missing) + " nodes absent from the extract"});
       continue;
     }
-    relation_outer_ways.insert(outer_way_ids.begin(), outer_way_ids.end());
+    outer_ways.insert(outer_way_ids.begin(), outer_way_ids.end());
     out.buildings.push_back(std::move(pr.b));
   }
-  for (auto& pw : building_ways) {
+}
+
+// The building ways, each as a building or a skip.
+void assemble_ways(RawOsm& raw, const Projector& project, const std::unordered_set<NodeId>& relation_outer_ways,
+                   OsmBuildings& out) {
+  for (auto& pw : raw.building_ways) {
     const std::string& id = pw.b.source_id;
     if (relation_outer_ways.count(pw.id) && !pw.b.is_part) {
       out.skipped.push_back({id, "drawn_by_relation", "outer member of a building multipolygon"});
@@ -284,7 +305,7 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
       continue;
     }
     std::size_t missing = 0;
-    auto ring = project_ring(pw.ring, missing);
+    auto ring = project_ring(raw, project, pw.ring, missing);
     if (missing) {
       out.skipped.push_back({id, "missing_nodes",
                              std::to_string(missing) + " of " + std::to_string(pw.ring.size()) +
@@ -294,7 +315,24 @@ OsmBuildings read_osm_buildings(const std::string& path, const Projector& projec
     pw.b.outers.push_back(std::move(ring));
     out.buildings.push_back(std::move(pw.b));
   }
+}
 
+}  // namespace
+
+OsmBuildings read_osm_buildings(const std::string& path, const Projector& project) {
+  OsmBuildings out;
+  RawOsm raw;
+  read_elements(path, out, raw);
+  if (out.nodes > 0 && std::isfinite(raw.min_lon)) {
+    out.min_lon = raw.min_lon;
+    out.min_lat = raw.min_lat;
+    out.max_lon = raw.max_lon;
+    out.max_lat = raw.max_lat;
+  }
+  // Relations first: their tagged outer ways must not be drawn twice.
+  std::unordered_set<NodeId> relation_outer_ways;
+  assemble_relations(raw, project, out, relation_outer_ways);
+  assemble_ways(raw, project, relation_outer_ways, out);
   return out;
 }
 

@@ -357,9 +357,12 @@ bool outside_pyramid(const std::vector<Vec3>& planes, const Vec3& apex, const Tr
 // Marks the receivers r whose line from image `img` (signed distance -ds
 // from the plane, the source at +ds) crosses the plane inside `sphere`
 // (+ tol): the cheap necessary part of "the reflection point is on the
-// face". Returns whether any is marked.
-bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl, double plane_offset_rel, double ds, const Vec3& img,
-                    const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol, Receivers& scratch) {
+// face". Returns whether any is marked. Inlined at every call: a wrapper
+// call per image otherwise.
+[[gnu::always_inline]] inline bool mark_crossings(const Receivers& rx, std::size_t begin, const Plane& pl,
+                                                  double plane_offset_rel, double ds, const Vec3& img,
+                                                  const TraceScene::Sphere& sphere, const Vec3& centre_rel, double tol,
+                                                  Receivers& scratch) {
   const double r2 = (sphere.radius + tol) * (sphere.radius + tol);
   return mark_crossings_kernel(rx.x.data(), rx.y.data(), rx.z.data(), scratch.hit.data(), begin, rx.size(),
                                pl.normal.data(), plane_offset_rel, ds, img.data(), centre_rel.data(), r2) != 0;
@@ -421,52 +424,169 @@ struct BeamSphereTest {
 
 }  // namespace
 
-void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
-                      std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
-                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
-                      bool ground_order3) {
-  if (max_order < 1 || receivers.empty()) return;
-  ImageSearchStats local;
-  const Vec3 xs = nodes[src].position;
-  // Everything relative to the source: the source is the origin.
-  Receivers rx, scratch;
-  for (auto r : receivers) {
-    const Vec3 w = nodes[r].position - xs;
-    rx.push(w);
-  }
-  scratch.n = rx.size();
-  scratch.pad();
-  auto receiver = [&](std::size_t r) { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; };
-  auto on_face = [&](std::size_t f, const Vec3& p) {
-    const Vec3 w = p - faces.spheres[f].centre;
-    const double rr = faces.spheres[f].radius + faces.tol[f];
-    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
-  };
+namespace {
 
-  const std::size_t higher_from =
-      static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin());
-  // Order 1, static faces (towards higher receivers).
-  for (std::size_t f = 0; f < faces.static_count; ++f) {
-    const Plane& pl = faces.planes[f];
-    const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
-    const double ds = -off;                              // the source's signed distance
-    if (ds == 0) continue;  // the source on the plane sees no image
-    const Vec3 img = (-2 * ds) * pl.normal;
-    ++local.image_sources;
-    local.tests += rx.size();
-    if (!mark_crossings(rx, higher_from, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs, faces.tol[f], scratch))
-      continue;
-    for (std::size_t r = higher_from; r < rx.size(); ++r) {
-      if (!scratch.hit[r]) continue;
-      const Vec3 xr = receiver(r);
-      const double d = dot(pl.normal, xr) - pl.offset;
-      if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d))) out.push_back({receivers[r], {faces.refs[f]}});
+// What one source's searches share: the source, its receivers relative to it
+// (the vectorised passes' form), the on-face test and the counters.
+class SourceSearch {
+ public:
+  SourceSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+               const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+      : scene(scene), faces(faces), nodes(nodes), receivers(receivers), out(out), xs(nodes[src].position) {
+    for (auto r : receivers) rx.push(nodes[r].position - xs);
+    scratch.n = rx.size();
+    scratch.pad();
+  }
+  void add_stats(ImageSearchStats* stats) const {
+    if (stats) {
+      stats->image_sources += local.image_sources;
+      stats->tests += local.tests;
     }
   }
 
+ protected:
+  const TraceScene& scene;
+  const ImageFaces& faces;
+  const std::vector<Node>& nodes;
+  const std::vector<std::uint32_t>& receivers;
+  std::vector<ImageCandidate>& out;
+  const Vec3 xs;
+  // Everything relative to the source: the source is the origin.
+  Receivers rx, scratch;
+  ImageSearchStats local;
+
+  // Inlined at every call (as the lambda it replaces was): it runs per
+  // candidate point, and a call costs as much as its sphere test.
+  [[gnu::always_inline]] inline bool on_face(std::size_t f, const Vec3& p) const {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  }
+};
+
+// image_candidates' search, one method per kind of sequence.
+class ImageSearch : public SourceSearch {
+ public:
+  ImageSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+              const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+      : SourceSearch(scene, faces, nodes, src, receivers, out),
+        src(src),
+        higher_from(
+            static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin())) {}
+
+  // Order 1, static faces (towards higher receivers).
+  void static_order1() {
+    for (std::size_t f = 0; f < faces.static_count; ++f) {
+      const Plane& pl = faces.planes[f];
+      const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
+      const double ds = -off;                              // the source's signed distance
+      if (ds == 0) continue;  // the source on the plane sees no image
+      const Vec3 img = (-2 * ds) * pl.normal;
+      ++local.image_sources;
+      local.tests += rx.size();
+      if (!mark_crossings(rx, higher_from, pl, off, ds, img, faces.spheres[f], faces.spheres[f].centre - xs,
+                          faces.tol[f], scratch))
+        continue;
+      for (std::size_t r = higher_from; r < rx.size(); ++r) {
+        if (!scratch.hit[r]) continue;
+        const Vec3 xr = receiver(r);
+        const double d = dot(pl.normal, xr) - pl.offset;
+        if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d)))
+          out.push_back({receivers[r], {faces.refs[f]}});
+      }
+    }
+  }
+
+  // Order 1, vehicle faces, through their normals (towards higher receivers).
+  void vehicle_order1() {
+    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
+      for (std::size_t r = higher_from; r < rx.size(); ++r)
+        vehicle_reflections(v, xs, r,
+                            [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
+  }
+
+  // Order 2, ground then vehicle (towards every receiver: from the other
+  // end it is vehicle then ground).
+  void ground_then_vehicle() {
+    for (std::uint32_t g : faces.ground) {
+      const Plane& pg = faces.planes[g];
+      const double ds = dot(pg.normal, xs) - pg.offset;
+      if (ds == 0) continue;
+      const Vec3 i1 = xs - (2 * ds) * pg.normal;
+      for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+        const auto& sv = faces.vehicle_spheres[v];
+        const double h = dot(pg.normal, sv.centre) - pg.offset;
+        if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
+        for (std::size_t r = 0; r < rx.size(); ++r)
+          vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
+            const double d2 = dot(pg.normal, q2) - pg.offset;
+            if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
+              out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+          });
+      }
+    }
+  }
+
+  // Orders 2 and 3 on one vehicle (its concave parts: hood and windscreen,
+  // a truck's cab and box), towards every receiver not riding it: the face
+  // sequences its model's table lists for the direction the wave arrives
+  // from, each decided by its images and on-face tests. Not for the
+  // source's own vehicle (the source sits inside its sphere).
+  void on_one_vehicle(int max_order) {
+    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
+      if (static_cast<int>(v) == nodes[src].vehicle) continue;
+      const auto& sv = faces.vehicle_spheres[v];
+      const Vec3 w = sv.centre - xs;
+      const double dist = norm(w);
+      if (dist <= sv.radius) continue;
+      const auto query = scene.vehicle_bounce_sequences(v, (1.0 / dist) * w, std::asin(sv.radius / dist));
+      for (const std::uint32_t id : *query.ids) {
+        const auto& sq = (*query.table)[id];
+        if (sq.order > max_order) continue;
+        bounce_sequence(v, sq);
+      }
+    }
+  }
+
+  // Order 2 over static faces: image I1 of the source in f1, then the image
+  // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
+  // that point must cross f1.
+  //
+  // Order 3 through the ground (a static face, the ground and another, in
+  // any order) with `ground3`, which shoot and bounce misses most of (a
+  // wall's beam bent down by the ground passes the receivers' spheres at
+  // grazing angles):
+  // - the ground last: the receiver's image in the ground plane sees I2
+  //   through f2, and the line from f2 to the receiver crosses the ground
+  //   face. The mirrored receivers join the same vectorised pass, towards
+  //   every receiver, so that the other end's search gives the ground first;
+  // - the ground between f1 and f2: the beam f1 reflects, mirrored in the
+  //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
+  //   beam does, and I2 is the image of I1' in f2.
+  void static_pairs(bool ground3) {
+    static const std::vector<std::uint32_t> no_faces;
+    grounds = ground3 ? &faces.ground : &no_faces;
+    mirror_receivers();
+    for (std::uint32_t f1 = 0; f1 < faces.static_count; ++f1) from_first_face(f1);
+  }
+
+ private:
+  const std::uint32_t src;
+  const std::size_t higher_from;  // the first receiver above the source
+  // static_pairs' state: the ground faces for order 3 (none without it),
+  // every receiver's image in each of them (relative to the source), the
+  // beams' pyramids and the tree walk's stack.
+  const std::vector<std::uint32_t>* grounds = nullptr;
+  Receivers mirrored;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
+  std::vector<Vec3> pyramid, pyramid_g;
+  std::vector<std::uint32_t> tree_stack;
+
+  Vec3 receiver(std::size_t r) const { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; }
+
   // The reflection on face f (world plane) from point `from` to receiver r,
   // appended when its point lies on the face.
-  auto reflect_to = [&](std::size_t f, const Vec3& from, const Vec3& xr, Vec3& point) {
+  bool reflect_to(std::size_t f, const Vec3& from, const Vec3& xr, Vec3& point) {
     const Plane& pl = faces.planes[f];
     const double df = dot(pl.normal, from) - pl.offset;
     const double d = dot(pl.normal, xr) - pl.offset;
@@ -474,12 +594,13 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     ++local.tests;
     point = crossing(from - (2 * df) * pl.normal, -df, xr, d);
     return on_face(f, point);
-  };
+  }
 
   // Reflections on vehicle v's faces from `from` to receiver r: emit(face,
   // point) for each face whose reflection point lies on it, the faces taken
   // from the normal index.
-  auto vehicle_reflections = [&](std::size_t v, const Vec3& from, std::size_t r, auto&& emit) {
+  template <class Emit>
+  void vehicle_reflections(std::size_t v, const Vec3& from, std::size_t r, Emit&& emit) {
     const Vec3 xr = receiver(r);
     Vec3 m;
     double cos_delta = -1;
@@ -491,128 +612,70 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
       Vec3 p;
       if (reflect_to(f, from, xr, p)) emit(f, p);
     }
-  };
-
-  // Order 1, vehicle faces, through their normals (towards higher receivers).
-  for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v)
-    for (std::size_t r = higher_from; r < rx.size(); ++r)
-      vehicle_reflections(v, xs, r,
-                          [&](std::size_t f, const Vec3&) { out.push_back({receivers[r], {faces.refs[f]}}); });
-
-  // Order 2, ground then vehicle (towards every receiver: from the other
-  // end it is vehicle then ground).
-  for (std::uint32_t g : max_order >= 2 ? faces.ground : std::vector<std::uint32_t>{}) {
-    const Plane& pg = faces.planes[g];
-    const double ds = dot(pg.normal, xs) - pg.offset;
-    if (ds == 0) continue;
-    const Vec3 i1 = xs - (2 * ds) * pg.normal;
-    for (std::size_t v = 0; v + 1 < faces.vehicle_begin.size(); ++v) {
-      const auto& sv = faces.vehicle_spheres[v];
-      const double h = dot(pg.normal, sv.centre) - pg.offset;
-      if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
-      for (std::size_t r = 0; r < rx.size(); ++r)
-        vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
-          const double d2 = dot(pg.normal, q2) - pg.offset;
-          if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
-            out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
-        });
-    }
   }
 
-  // Orders 2 and 3 on one vehicle (its concave parts: hood and windscreen,
-  // a truck's cab and box), towards every receiver not riding it: the face
-  // sequences its model's table lists for the direction the wave arrives
-  // from, each decided by its images and on-face tests. Not for the
-  // source's own vehicle (the source sits inside its sphere).
-  for (std::size_t v = 0; multi_bounce && max_order >= 2 && v + 1 < faces.vehicle_begin.size(); ++v) {
-    if (static_cast<int>(v) == nodes[src].vehicle) continue;
-    const auto& sv = faces.vehicle_spheres[v];
-    const Vec3 w = sv.centre - xs;
-    const double dist = norm(w);
-    if (dist <= sv.radius) continue;
-    const auto query = scene.vehicle_bounce_sequences(v, (1.0 / dist) * w, std::asin(sv.radius / dist));
-    for (const std::uint32_t id : *query.ids) {
-      const auto& sq = (*query.table)[id];
-      if (sq.order > max_order) continue;
-      std::array<Vec3, 4> img;
-      std::array<std::size_t, 3> fi{};
-      img[0] = xs;
-      bool ok = true;
-      for (int k = 0; k < sq.order && ok; ++k) {
-        fi[k] = faces.vehicle_begin[v] + sq.faces[k];
-        const Plane& pl = faces.planes[fi[k]];
-        const double dk = dot(pl.normal, img[k]) - pl.offset;
-        // The image before reflection k lies on the side the face is met
-        // from (the table's rays came from there).
-        ok = ((sq.front >> k) & 1u) ? dk > 0 : dk < 0;
-        img[k + 1] = img[k] - (2 * dk) * pl.normal;
-      }
-      if (!ok) continue;
-      ++local.image_sources;
-      // The receivers whose line from the last image crosses the last face's
-      // sphere (a vectorised pass), then the exact walk back.
-      const int last = sq.order - 1;
-      const Plane& pl_last = faces.planes[fi[last]];
-      const double d_last = dot(pl_last.normal, img[last]) - pl_last.offset;
-      local.tests += rx.size();
-      if (!mark_crossings(rx, 0, pl_last, pl_last.offset - dot(pl_last.normal, xs), d_last, img[last + 1] - xs,
-                          faces.spheres[fi[last]], faces.spheres[fi[last]].centre - xs, faces.tol[fi[last]], scratch))
-        continue;
-      for (std::size_t r = 0; r < rx.size(); ++r) {
-        if (!scratch.hit[r] || nodes[receivers[r]].vehicle == static_cast<int>(v)) continue;
-        Vec3 target = receiver(r);
-        bool on = true;
-        for (int k = sq.order - 1; k >= 0 && on; --k) {
-          const Plane& pl = faces.planes[fi[k]];
-          const double di = dot(pl.normal, img[k]) - pl.offset, dt = dot(pl.normal, target) - pl.offset;
-          on = di * dt > 0;
-          if (!on) break;
-          ++local.tests;
-          const Vec3 q = crossing(img[k + 1], -di, target, dt);
-          on = on_face(fi[k], q);
-          target = q;
-        }
-        if (!on) continue;
-        ImageCandidate c{receivers[r], {}};
-        for (int k = 0; k < sq.order; ++k) c.faces.push_back(faces.refs[fi[k]]);
-        out.push_back(std::move(c));
-      }
+  // One sequence of vehicle v's table: its images, the receivers whose line
+  // from the last image crosses the last face's sphere (a vectorised pass),
+  // then the exact walk back.
+  void bounce_sequence(std::size_t v, const TraceScene::BounceSequence& sq) {
+    std::array<Vec3, 4> img;
+    std::array<std::size_t, 3> fi{};
+    img[0] = xs;
+    bool ok = true;
+    for (int k = 0; k < sq.order && ok; ++k) {
+      fi[k] = faces.vehicle_begin[v] + sq.faces[k];
+      const Plane& pl = faces.planes[fi[k]];
+      const double dk = dot(pl.normal, img[k]) - pl.offset;
+      // The image before reflection k lies on the side the face is met
+      // from (the table's rays came from there).
+      ok = ((sq.front >> k) & 1u) ? dk > 0 : dk < 0;
+      img[k + 1] = img[k] - (2 * dk) * pl.normal;
     }
-  }
-
-  // Order 2 over static faces: image I1 of the source in f1, then the image
-  // I2 of I1 in f2; the receiver sees I2 through f2, and the line from I1 to
-  // that point must cross f1.
-  //
-  // Order 3 through the ground (a static face, the ground and another, in
-  // any order), which shoot and bounce misses most of (a wall's beam bent
-  // down by the ground passes the receivers' spheres at grazing angles):
-  // - the ground last: the receiver's image in the ground plane sees I2
-  //   through f2, and the line from f2 to the receiver crosses the ground
-  //   face. The mirrored receivers join the same vectorised pass, towards
-  //   every receiver, so that the other end's search gives the ground first;
-  // - the ground between f1 and f2: the beam f1 reflects, mirrored in the
-  //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
-  //   beam does, and I2 is the image of I1' in f2.
-  const std::uint32_t ns = max_order >= 2 ? faces.static_count : 0;
-  const bool ground3 = ground_order3 && max_order >= 3 && ns > 0;
-  static const std::vector<std::uint32_t> no_faces;
-  const std::vector<std::uint32_t>& grounds = ground3 ? faces.ground : no_faces;  // no copy per f1
-  Receivers mirrored;  // every receiver's image in each ground face, relative to the source
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
-  for (std::uint32_t g : grounds) {
-    const Plane& pg = faces.planes[g];
+    if (!ok) return;
+    ++local.image_sources;
+    const int last = sq.order - 1;
+    const Plane& pl_last = faces.planes[fi[last]];
+    const double d_last = dot(pl_last.normal, img[last]) - pl_last.offset;
+    local.tests += rx.size();
+    if (!mark_crossings(rx, 0, pl_last, pl_last.offset - dot(pl_last.normal, xs), d_last, img[last + 1] - xs,
+                        faces.spheres[fi[last]], faces.spheres[fi[last]].centre - xs, faces.tol[fi[last]], scratch))
+      return;
     for (std::size_t r = 0; r < rx.size(); ++r) {
-      const Vec3 xr = receiver(r);
-      const double d = dot(pg.normal, xr) - pg.offset;
-      if (d == 0) continue;  // on the ground plane: no image
-      const Vec3 m = xr - (2 * d) * pg.normal - xs;
-      mirrored.push(m);
-      mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+      if (!scratch.hit[r] || nodes[receivers[r]].vehicle == static_cast<int>(v)) continue;
+      Vec3 target = receiver(r);
+      bool on = true;
+      for (int k = sq.order - 1; k >= 0 && on; --k) {
+        const Plane& pl = faces.planes[fi[k]];
+        const double di = dot(pl.normal, img[k]) - pl.offset, dt = dot(pl.normal, target) - pl.offset;
+        on = di * dt > 0;
+        if (!on) break;
+        ++local.tests;
+        const Vec3 q = crossing(img[k + 1], -di, target, dt);
+        on = on_face(fi[k], q);
+        target = q;
+      }
+      if (!on) continue;
+      ImageCandidate c{receivers[r], {}};
+      for (int k = 0; k < sq.order; ++k) c.faces.push_back(faces.refs[fi[k]]);
+      out.push_back(std::move(c));
     }
   }
-  std::vector<Vec3> pyramid, pyramid_g;
-  std::vector<std::uint32_t> tree_stack;
+
+  // Every receiver's image in each ground face of `grounds`.
+  void mirror_receivers() {
+    for (std::uint32_t g : *grounds) {
+      const Plane& pg = faces.planes[g];
+      for (std::size_t r = 0; r < rx.size(); ++r) {
+        const Vec3 xr = receiver(r);
+        const double d = dot(pg.normal, xr) - pg.offset;
+        if (d == 0) continue;  // on the ground plane: no image
+        const Vec3 m = xr - (2 * d) * pg.normal - xs;
+        mirrored.push(m);
+        mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+      }
+    }
+  }
+
   // The beam of f1's reflections: apex (I1, or its image in the ground),
   // the cone through f1's sphere and the pyramid through its outline.
   struct Beam {
@@ -621,10 +684,30 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     bool narrow;
     const std::vector<Vec3>* pyramid;
   };
-  for (std::uint32_t f1 = 0; f1 < ns; ++f1) {
+  // The first reflection of a static pair: face f1, the source's distance
+  // ds from its plane and its image I1 there. A reflection point accepted
+  // within tol of f1's outline moves the continuation by up to tol times
+  // (distance / |ds|) at f2: spread_per_m.
+  struct FirstBounce {
+    std::uint32_t f1;
+    const Plane& p1;
+    double ds;
+    Vec3 i1;
+    double spread_per_m;
+  };
+  // The second: face f2, the apex's distance di from its plane and its
+  // image I2 there.
+  struct SecondBounce {
+    std::uint32_t f2;
+    const Plane& p2;
+    double di;
+    Vec3 i2;
+  };
+
+  void from_first_face(std::uint32_t f1) {
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
-    if (ds == 0) continue;
+    if (ds == 0) return;
     const Vec3 i1 = xs - (2 * ds) * p1.normal;
     // Every continuation of a path reflected by f1 lies in the cone from I1
     // through f1 (on the source's side of f1).
@@ -634,211 +717,223 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
     // per outline edge (inward normals), padded by the on-face tolerance.
     pyramid.clear();
     outline_pyramid(faces, f1, i1, pyramid);
-    // A reflection point accepted within tol of f1's outline moves the
-    // continuation by up to tol times (distance / |ds|) at f2.
-    // (`spread`: a node's faces lie up to its radius farther than its centre.)
-    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
-    auto outside_beam = [&](const Beam& b, const TraceScene::Sphere& sp, double tol, double spread) {
-      // One square root for both tests (this runs for every tree node and
-      // face a beam meets); the pyramid first, as it rejects most.
-      const Vec3 w = sp.centre - b.apex;
-      const double dist = norm(w);
-      const double pad = spread_per_m * (dist + sp.radius) + tol + 1e-6 * (dist + spread);
-      for (const auto& nrm : *b.pyramid)
-        if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      if (!b.narrow || dist <= sp.radius) return false;
-      // The cone from the apex through sp against the beam's cone.
-      Cone c;
-      c.axis = (1.0 / dist) * w;
-      c.sin_h = sp.radius / dist;
-      c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
-      return !cones_overlap(b.cone, c);
-    };
-    // The second faces in beam b: down the sphere tree, groups wholly on the
-    // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
-    // it on) or outside the beam skipped whole (their faces would each fail
-    // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
-    // the rest.
-    auto walk_beam = [&](const Beam& b, const Plane& plane, double side, std::uint32_t from_face, auto&& leaf) {
-      walk_static_tree(
-          faces, tree_stack,
-          [&](const TraceScene::Sphere& sp, double tol) {
-            const double h = dot(plane.normal, sp.centre) - plane.offset;
-            if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
-            return outside_beam(b, sp, tol, sp.radius);
-          },
-          [&](std::uint32_t f2) {
-            // f2 must reach the side the beam leaves from_face on.
-            if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
-            if (outside_beam(b, faces.spheres[f2], faces.tol[f2], 0)) return;
-            leaf(f2);
-          });
-    };
-    // The image I2 of `apex` in f2 (di: the apex's distance from f2's
-    // plane); false when the apex lies on it.
-    auto image_in = [&](std::uint32_t f2, const Vec3& apex, double& di, Vec3& i2) {
-      const Plane& p2 = faces.planes[f2];
-      di = dot(p2.normal, apex) - p2.offset;
-      if (di == 0) return false;
-      i2 = apex - (2 * di) * p2.normal;
-      ++local.image_sources;
-      return true;
-    };
+    const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds)};
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
-    walk_beam(beam, p1, ds, f1, [&](std::uint32_t f2) {
-      const auto& s2 = faces.spheres[f2];
-      const Plane& p2 = faces.planes[f2];
-      double di;
-      Vec3 i2;
-      if (!image_in(f2, i1, di, i2)) return;
-      // Relative to the source: I1 is at distance di from f2's plane.
-      const double off2 = p2.offset - dot(p2.normal, xs);
-      // q2 on f2 towards `target`, then f1 on the way back from q2.
-      auto back_to_f1 = [&](const Vec3& target, Vec3& q2) {
-        const double d = dot(p2.normal, target) - p2.offset;
-        q2 = crossing(i2, -di, target, d);
-        if (!on_face(f2, q2)) return false;
-        const double d2 = dot(p1.normal, q2) - p1.offset;
-        return ds * d2 > 0 && on_face(f1, crossing(i1, -ds, q2, d2));
-      };
-      local.tests += rx.size();
-      if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
-        for (std::size_t r = higher_from; r < rx.size(); ++r) {
-          Vec3 q2;
-          if (scratch.hit[r] && back_to_f1(receiver(r), q2))
-            out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
-        }
-      if (mirrored.size() == 0) return;
-      local.tests += mirrored.size();
-      if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored))
-        return;
-      for (std::size_t m = 0; m < mirrored.size(); ++m) {
-        const auto [g, r] = mirrored_of[m];
-        if (!mirrored.hit[m] || g == f2) continue;
-        // Ground, f2, ground: after the first ground reflection the path
-        // leaves the ground's plane, and a face perpendicular to it (a
-        // wall) keeps that component: it never comes back.
-        if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
-        const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
-        Vec3 q2;
-        if (!back_to_f1(xm, q2)) continue;
-        // The last leg, from q2 down to the ground and up to the receiver.
-        const Plane& pg = faces.planes[g];
-        const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
-        if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
-          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
-      }
-    });
+    walk_beam(b1, beam, p1, ds, f1, [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
-    for (std::uint32_t g : grounds) {
-      if (g == f1 || !scene.static_face_reaches(f1, ds > 0 ? 1 : -1, g)) continue;
-      if (outside_beam(beam, faces.spheres[g], faces.tol[g], 0)) continue;
+    for (std::uint32_t g : *grounds) ground_between(b1, beam, g);
+  }
+
+  // Whether sphere sp (+ tol) lies outside beam b. (`spread`: a node's faces
+  // lie up to its radius farther than its centre.)
+  bool outside_beam(const FirstBounce& b1, const Beam& b, const TraceScene::Sphere& sp, double tol,
+                    double spread) const {
+    // One square root for both tests (this runs for every tree node and
+    // face a beam meets); the pyramid first, as it rejects most.
+    const Vec3 w = sp.centre - b.apex;
+    const double dist = norm(w);
+    const double pad = b1.spread_per_m * (dist + sp.radius) + tol + 1e-6 * (dist + spread);
+    for (const auto& nrm : *b.pyramid)
+      if (dot(nrm, w) < -(sp.radius + pad)) return true;
+    if (!b.narrow || dist <= sp.radius) return false;
+    // The cone from the apex through sp against the beam's cone.
+    Cone c;
+    c.axis = (1.0 / dist) * w;
+    c.sin_h = sp.radius / dist;
+    c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
+    return !cones_overlap(b.cone, c);
+  }
+
+  // The second faces in beam b: down the sphere tree, groups wholly on the
+  // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
+  // it on) or outside the beam skipped whole (their faces would each fail
+  // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
+  // the rest.
+  template <class Leaf>
+  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, std::uint32_t from_face,
+                 Leaf&& leaf) {
+    walk_static_tree(
+        faces, tree_stack,
+        [&](const TraceScene::Sphere& sp, double tol) {
+          const double h = dot(plane.normal, sp.centre) - plane.offset;
+          if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
+          return outside_beam(b1, b, sp, tol, sp.radius);
+        },
+        [&](std::uint32_t f2) {
+          // f2 must reach the side the beam leaves from_face on.
+          if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
+          if (outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0)) return;
+          leaf(f2);
+        });
+  }
+
+  // The image I2 of `apex` in f2 (di: the apex's distance from f2's
+  // plane); false when the apex lies on it.
+  bool image_in(std::uint32_t f2, const Vec3& apex, double& di, Vec3& i2) {
+    const Plane& p2 = faces.planes[f2];
+    di = dot(p2.normal, apex) - p2.offset;
+    if (di == 0) return false;
+    i2 = apex - (2 * di) * p2.normal;
+    ++local.image_sources;
+    return true;
+  }
+
+  // q2 on f2 towards `target`, then f1 on the way back from q2.
+  bool back_to_f1(const FirstBounce& b1, const SecondBounce& b2, const Vec3& target, Vec3& q2) const {
+    const Plane& p1 = b1.p1;
+    const Plane& p2 = b2.p2;
+    const double d = dot(p2.normal, target) - p2.offset;
+    q2 = crossing(b2.i2, -b2.di, target, d);
+    if (!on_face(b2.f2, q2)) return false;
+    const double d2 = dot(p1.normal, q2) - p1.offset;
+    return b1.ds * d2 > 0 && on_face(b1.f1, crossing(b1.i1, -b1.ds, q2, d2));
+  }
+
+  // Order 2 (f1, f2) towards the higher receivers, then order 3 (f1, f2,
+  // ground) towards the mirrored ones.
+  void second_face(const FirstBounce& b1, std::uint32_t f2) {
+    const std::uint32_t f1 = b1.f1;
+    const auto& s2 = faces.spheres[f2];
+    double di;
+    Vec3 i2;
+    if (!image_in(f2, b1.i1, di, i2)) return;
+    const SecondBounce b2{f2, faces.planes[f2], di, i2};
+    const Plane& p2 = b2.p2;
+    // Relative to the source: I1 is at distance di from f2's plane.
+    const double off2 = p2.offset - dot(p2.normal, xs);
+    local.tests += rx.size();
+    if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
+      for (std::size_t r = higher_from; r < rx.size(); ++r) {
+        Vec3 q2;
+        if (scratch.hit[r] && back_to_f1(b1, b2, receiver(r), q2))
+          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
+      }
+    if (mirrored.size() == 0) return;
+    local.tests += mirrored.size();
+    if (!mark_crossings(mirrored, 0, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], mirrored)) return;
+    ground_last(b1, b2);
+  }
+
+  // Order 3 (f1, f2, ground) towards the mirrored receivers marked.
+  void ground_last(const FirstBounce& b1, const SecondBounce& b2) {
+    const std::uint32_t f1 = b1.f1, f2 = b2.f2;
+    const Plane& p2 = b2.p2;
+    for (std::size_t m = 0; m < mirrored.size(); ++m) {
+      const auto [g, r] = mirrored_of[m];
+      if (!mirrored.hit[m] || g == f2) continue;
+      // Ground, f2, ground: after the first ground reflection the path
+      // leaves the ground's plane, and a face perpendicular to it (a
+      // wall) keeps that component: it never comes back.
+      if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
+      const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
+      Vec3 q2;
+      if (!back_to_f1(b1, b2, xm, q2)) continue;
+      // The last leg, from q2 down to the ground and up to the receiver.
       const Plane& pg = faces.planes[g];
-      const double dg = dot(pg.normal, i1) - pg.offset;
-      if (dg == 0) continue;
-      const Vec3 i1g = i1 - (2 * dg) * pg.normal;
-      auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
-      pyramid_g.clear();
-      for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
-      Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
-      bg.cone.axis = mirror(beam.cone.axis);
-      // After the ground the path runs on I1's side of it (q2 with I1).
-      walk_beam(bg, pg, dg, g, [&](std::uint32_t f2) {
-        if (f2 == g) return;
-        const auto& s2 = faces.spheres[f2];
-        const Plane& p2 = faces.planes[f2];
-        double di;
-        Vec3 i2;
-        if (!image_in(f2, i1g, di, i2)) return;
-        local.tests += rx.size() - higher_from;
-        if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
-                            faces.tol[f2], scratch))
-          return;
-        for (std::size_t r = higher_from; r < rx.size(); ++r) {
-          if (!scratch.hit[r]) continue;
-          const Vec3 xr = receiver(r);
-          const double d = dot(p2.normal, xr) - p2.offset;
-          const Vec3 q2 = crossing(i2, -di, xr, d);
-          if (!on_face(f2, q2)) continue;
-          const double dq = dot(pg.normal, q2) - pg.offset;
-          if (!(dg * dq > 0)) continue;
-          const Vec3 qg = crossing(i1g, -dg, q2, dq);
-          if (!on_face(g, qg)) continue;
-          const double d1 = dot(p1.normal, qg) - p1.offset;
-          if (ds * d1 > 0 && on_face(f1, crossing(i1, -ds, qg, d1)))
-            out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
-        }
-      });
+      const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
+      if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
     }
   }
-  if (stats) {
-    stats->image_sources += local.image_sources;
-    stats->tests += local.tests;
+
+  // Order 3 (f1, ground g, f2): f1's beam mirrored in g, when it reaches g.
+  void ground_between(const FirstBounce& b1, const Beam& beam, std::uint32_t g) {
+    const std::uint32_t f1 = b1.f1;
+    if (g == f1 || !scene.static_face_reaches(f1, b1.ds > 0 ? 1 : -1, g)) return;
+    if (outside_beam(b1, beam, faces.spheres[g], faces.tol[g], 0)) return;
+    const Plane& pg = faces.planes[g];
+    const double dg = dot(pg.normal, b1.i1) - pg.offset;
+    if (dg == 0) return;
+    const Vec3 i1g = b1.i1 - (2 * dg) * pg.normal;
+    auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
+    pyramid_g.clear();
+    for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
+    Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
+    bg.cone.axis = mirror(beam.cone.axis);
+    // After the ground the path runs on I1's side of it (q2 with I1).
+    walk_beam(b1, bg, pg, dg, g, [&](std::uint32_t f2) {
+      if (f2 != g) after_ground(b1, g, dg, i1g, f2);
+    });
   }
+
+  // Order 3 (f1, g, f2) through second face f2 of the mirrored beam (apex
+  // i1g, at distance dg from g's plane), towards the higher receivers.
+  void after_ground(const FirstBounce& b1, std::uint32_t g, double dg, const Vec3& i1g, std::uint32_t f2) {
+    const std::uint32_t f1 = b1.f1;
+    const Plane& p1 = b1.p1;
+    const Plane& pg = faces.planes[g];
+    const auto& s2 = faces.spheres[f2];
+    const Plane& p2 = faces.planes[f2];
+    double di;
+    Vec3 i2;
+    if (!image_in(f2, i1g, di, i2)) return;
+    local.tests += rx.size() - higher_from;
+    if (!mark_crossings(rx, higher_from, p2, p2.offset - dot(p2.normal, xs), di, i2 - xs, s2, s2.centre - xs,
+                        faces.tol[f2], scratch))
+      return;
+    for (std::size_t r = higher_from; r < rx.size(); ++r) {
+      if (!scratch.hit[r]) continue;
+      const Vec3 xr = receiver(r);
+      const double d = dot(p2.normal, xr) - p2.offset;
+      const Vec3 q2 = crossing(i2, -di, xr, d);
+      if (!on_face(f2, q2)) continue;
+      const double dq = dot(pg.normal, q2) - pg.offset;
+      if (!(dg * dq > 0)) continue;
+      const Vec3 qg = crossing(i1g, -dg, q2, dq);
+      if (!on_face(g, qg)) continue;
+      const double d1 = dot(p1.normal, qg) - p1.offset;
+      if (b1.ds * d1 > 0 && on_face(f1, crossing(b1.i1, -b1.ds, qg, d1)))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
+    }
+  }
+};
+
+}  // namespace
+
+void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                      std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
+                      std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
+                      bool ground_order3) {
+  if (max_order < 1 || receivers.empty()) return;
+  ImageSearch search(scene, faces, nodes, src, receivers, out);
+  search.static_order1();
+  search.vehicle_order1();
+  if (max_order >= 2) search.ground_then_vehicle();
+  if (multi_bounce && max_order >= 2) search.on_one_vehicle(max_order);
+  if (max_order >= 2) search.static_pairs(ground_order3 && max_order >= 3 && faces.static_count > 0);
+  search.add_stats(stats);
 }
 
-void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
-                             std::uint32_t src, const std::vector<std::uint32_t>& receivers,
-                             const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
-                             ImageSearchStats* stats, bool with_ground, BeamVehicleMethod method) {
-  if (combos.empty() || receivers.empty()) return;
-  ImageSearchStats local;
-  const Vec3 xs = nodes[src].position;
-  auto on_face = [&](std::size_t f, const Vec3& p) {
-    const Vec3 w = p - faces.spheres[f].centre;
-    const double rr = faces.spheres[f].radius + faces.tol[f];
-    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
-  };
-  // The receivers relative to the source, and their images in each ground
-  // face (for the ground last; none without `with_ground`; NaN, never
-  // marked, for a receiver on the ground's plane).
-  Receivers rx, scratch;
-  for (auto r : receivers) rx.push(nodes[r].position - xs);
-  scratch.n = rx.size();
-  scratch.pad();
-  const double nan = std::numeric_limits<double>::quiet_NaN();
-  std::vector<Receivers> mirrored(with_ground ? faces.ground.size() : 0);
-  std::vector<std::vector<Vec3>> mirrored_at(mirrored.size());  // the same in world coordinates
-  for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
-    const Plane& pg = faces.planes[faces.ground[k]];
-    for (auto r : receivers) {
-      const Vec3 xr = nodes[r].position;
-      const double d = dot(pg.normal, xr) - pg.offset;
-      mirrored_at[k].push_back(d != 0 ? xr - (2 * d) * pg.normal : Vec3{nan, nan, nan});
-      mirrored[k].push(mirrored_at[k].back() - xs);
-    }
+namespace {
+
+// The kinds of path through a (static face, vehicle) combination: the
+// wall's echo off the car (W-V), the ground between (W-G-V) and the ground
+// last (W-V-G).
+enum class Kind { echo, between, last };
+
+// beam_vehicle_candidates' search, one combination at a time.
+class BeamVehicleSearch : public SourceSearch {
+ public:
+  BeamVehicleSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                    std::uint32_t src, const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
+                    bool with_ground, BeamVehicleMethod method)
+      : SourceSearch(scene, faces, nodes, src, receivers, out), method(method) {
+    mirror_receivers(with_ground);
+    pyramid_g.resize(faces.ground.size());
+    between.resize(faces.ground.size());
+    i1g.resize(faces.ground.size());
+    keep_between.resize(faces.ground.size());
   }
-  // A receiver riding vehicle v takes its echoes off v from the faces its
-  // mount sees (a normal bound or image pass is void inside the vehicle).
-  auto mount_of = [&](std::uint32_t v, std::uint32_t r) -> const std::vector<std::uint32_t>* {
-    return static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, nodes[r].position) : nullptr;
-  };
-  std::vector<Vec3> pyramid;
-  std::vector<std::vector<Vec3>> pyramid_g(faces.ground.size());  // f1's pyramid mirrored in each ground face
-  std::vector<char> between(faces.ground.size());
-  std::vector<Vec3> i1g(faces.ground.size());
-  BeamSphereTest sphere_test;
-  std::vector<std::int64_t> keep_direct;
-  std::vector<std::vector<std::int64_t>> keep_between(faces.ground.size());
-  enum class Kind { echo, between, last };
-  struct Variant {
-    Kind kind;
-    std::uint32_t k;  // ground index (between, last)
-    Vec3 from, to;    // the image before the car, and the point after it
-    Vec3 bisector{0, 0, 1};
-    double cos_delta = -1, sin_delta = 1;
-  };
-  std::vector<Variant> variants;
-  for (const BeamVehicle& combo : combos) {
-    // (Not a structured binding: clang before 16 cannot capture those.)
+
+  void combination(const BeamVehicle& combo) {
     const std::uint32_t f1 = combo.face, v = combo.vehicle;
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
-    if (ds == 0) continue;
+    if (ds == 0) return;
     const Vec3 i1 = xs - (2 * ds) * p1.normal;
     const auto& sv = faces.vehicle_spheres[v];
     const double h = dot(p1.normal, sv.centre) - p1.offset;
-    if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side of f1
+    if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) return;  // not on the source's side of f1
     // The rays' widened test is loose: the vehicle must meet f1's beam, the
     // pyramid from I1 through f1's outline (padded by the on-face
     // tolerance carried to the distance); with the ground between, that
@@ -847,53 +942,10 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
     outline_pyramid(faces, f1, i1, pyramid);
     const double spread_per_m = 2 * faces.tol[f1] / std::fabs(ds);
     const bool direct = !outside_pyramid(pyramid, i1, sv, 0, spread_per_m);
-    // The reflection on vehicle face f from `from` towards `to`, then the
-    // way back through the ground (if any) to f1; appended when every point
-    // lies on its face.
-    auto try_face = [&](Kind kind, std::uint32_t k, const Vec3& from, const Vec3& to, std::size_t f, std::uint32_t r) {
-      const Plane& pl = faces.planes[f];
-      const double df = dot(pl.normal, from) - pl.offset, d = dot(pl.normal, to) - pl.offset;
-      if (!(df * d > 0)) return;
-      const Vec3 q = crossing(from - (2 * df) * pl.normal, -df, to, d);
-      if (!on_face(f, q)) return;
-      Vec3 back = q;  // the point the line from I1 must reach through f1
-      const std::uint32_t g = kind == Kind::echo ? 0 : faces.ground[k];
-      if (kind != Kind::echo) {
-        const Plane& pg = faces.planes[g];
-        const double dq = dot(pg.normal, q) - pg.offset;
-        if (kind == Kind::between) {
-          // From I1's image (below the ground, I1 above) to q above it.
-          const double dg = dot(pg.normal, from) - pg.offset;
-          if (!(dg * dq < 0)) return;
-          back = crossing(from, dg, q, dq);
-          if (!on_face(g, back)) return;
-        } else {
-          // From q down to the ground, then up to the receiver.
-          const Vec3 xr = nodes[r].position;
-          const double dr = dot(pg.normal, xr) - pg.offset;
-          if (!(dq * dr > 0) || !on_face(g, crossing(to, -dr, q, dq))) return;
-        }
-      }
-      const double d1 = dot(p1.normal, back) - p1.offset;
-      if (!(ds * d1 > 0) || !on_face(f1, crossing(i1, -ds, back, d1))) return;
-      switch (kind) {
-        case Kind::echo: out.push_back({r, {faces.refs[f1], faces.refs[f]}}); break;
-        case Kind::between: out.push_back({r, {faces.refs[f1], faces.refs[g], faces.refs[f]}}); break;
-        case Kind::last: out.push_back({r, {faces.refs[f1], faces.refs[f], faces.refs[g]}}); break;
-      }
-    };
-    bool any_between = false;
-    for (std::uint32_t k = 0; k < between.size() && !mirrored.empty(); ++k) {
-      const Plane& pg = faces.planes[faces.ground[k]];
-      const double dg = dot(pg.normal, i1) - pg.offset, hg = dot(pg.normal, sv.centre) - pg.offset;
-      between[k] = faces.ground[k] != f1 && dg != 0 && (dg > 0 ? hg + sv.radius > 0 : hg - sv.radius < 0);
-      if (!between[k]) continue;
-      pyramid_g[k].clear();
-      for (const auto& nrm : pyramid) pyramid_g[k].push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
-      between[k] = !outside_pyramid(pyramid_g[k], i1 - (2 * dg) * pg.normal, sv, 0, spread_per_m);
-      any_between |= between[k] != 0;
-    }
-    if (!direct && !any_between) continue;
+    const std::uint32_t fb = faces.vehicle_begin[v], fe = faces.vehicle_begin[v + 1];
+    const Combo c{f1, v, p1, ds, i1, sv, spread_per_m, direct, fb, fe, fe - fb};
+    const bool any_between = ground_beams(c);
+    if (!direct && !any_between) return;
     ++local.image_sources;
     // The images the paths unfold from: I1, and for the ground between,
     // I1's image in each ground face.
@@ -902,75 +954,202 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
         const Plane& pg = faces.planes[faces.ground[k]];
         i1g[k] = i1 - (2 * (dot(pg.normal, i1) - pg.offset)) * pg.normal;
       }
-    // Per face of the vehicle and kind of path, its image and one
-    // vectorised pass over the receivers (or their images in the ground),
-    // then the exact test for those marked: the wall's echo off the car
-    // (W-V), the ground between (W-G-V) and the ground last (W-V-G).
-    auto pass = [&](Kind kind, std::uint32_t k, const Vec3& from, const Receivers& to, std::size_t f) {
-      const Plane& pl = faces.planes[f];
-      const double df = dot(pl.normal, from) - pl.offset;
-      if (df == 0) return;
-      const auto& sf = faces.spheres[f];
-      local.tests += to.size();
-      // The pass is a necessary condition only (try_face decides), so its
-      // sphere is padded against rounding.
-      if (!mark_crossings(to, 0, pl, pl.offset - dot(pl.normal, xs), df, from - (2 * df) * pl.normal - xs, sf,
-                          sf.centre - xs, faces.tol[f] + 1e-9 * (sf.radius + 1), scratch))
-        return;
-      for (std::size_t ri = 0; ri < to.size(); ++ri) {
-        if (!scratch.hit[ri]) continue;
-        const std::uint32_t r = receivers[ri];
-        if (kind == Kind::echo && mount_of(v, r)) continue;
-        try_face(kind, k, from, kind == Kind::last ? mirrored_at[k][ri] : nodes[r].position, f, r);
-      }
-    };
     // Only the faces in the beam (the pyramid through f1, or its image in
     // the ground) can hold the reflection point.
-    const std::uint32_t fb = faces.vehicle_begin[v], fe = faces.vehicle_begin[v + 1], nf = fe - fb;
-    auto in_beam = [&](const std::vector<Vec3>& planes, const Vec3& apex, std::vector<std::int64_t>& keep) {
-      // (No plane to be behind: a zero normal keeps every face.)
-      const Plane no_plane{{0, 0, 0}, -1};
-      sphere_test.set_pyramid(planes);
-      sphere_test.run(faces, fb - faces.vehicle_begin[0], nf, apex, spread_per_m, no_plane, 1, keep);
-    };
-    if (direct) in_beam(pyramid, i1, keep_direct);
+    if (direct) in_beam(c, pyramid, i1, keep_direct);
     for (std::uint32_t k = 0; k < mirrored.size(); ++k)
-      if (between[k]) in_beam(pyramid_g[k], i1g[k], keep_between[k]);
-    // Two exact ways to the same candidates (try_face decides each): per
-    // face and kind an image and a vectorised pass over the receivers, or
-    // per receiver a lookup in the vehicle's normal table around the
-    // union of its kinds' normal windows. The passes cost faces x kinds x
-    // receivers / 8, the lookups receivers x (10 + 8 kinds) in the same
-    // unit (measured: equal on the ring road, whose one ground plane makes
-    // two kinds; on the demo city's ground tiles the lookups' union
-    // window holds most faces and the passes take half the time).
-    std::uint64_t passes = 0;
-    int kinds = direct ? 1 : 0;
+      if (between[k]) in_beam(c, pyramid_g[k], i1g[k], keep_between[k]);
+    if (by_passes(c))
+      search_by_passes(c);
+    else
+      search_by_lookups(c);
+  }
+
+ private:
+  // One combination: static face f1 (the source's distance ds from its
+  // plane, its image I1 there), vehicle v (sphere sv, faces [fb, fe)), the
+  // on-face tolerance's spread per metre along f1's beam, and whether the
+  // vehicle meets that beam without the ground between (`direct`).
+  struct Combo {
+    std::uint32_t f1, v;
+    const Plane& p1;
+    double ds;
+    Vec3 i1;
+    const TraceScene::Sphere& sv;
+    double spread_per_m;
+    bool direct;
+    std::uint32_t fb, fe, nf;
+  };
+  // A kind of path to one receiver, for the normal table's lookup.
+  struct Variant {
+    Kind kind;
+    std::uint32_t k;  // ground index (between, last)
+    Vec3 from, to;    // the image before the car, and the point after it
+    Vec3 bisector{0, 0, 1};
+    double cos_delta = -1, sin_delta = 1;
+  };
+
+  const BeamVehicleMethod method;
+  // The receivers' images in each ground face (for the ground last; none
+  // without `with_ground`; NaN, never marked, for a receiver on the
+  // ground's plane), relative to the source and in world coordinates.
+  std::vector<Receivers> mirrored;
+  std::vector<std::vector<Vec3>> mirrored_at;
+  std::vector<Vec3> pyramid;
+  std::vector<std::vector<Vec3>> pyramid_g;  // f1's pyramid mirrored in each ground face
+  std::vector<char> between;                 // per ground face: the vehicle meets f1's beam mirrored in it
+  std::vector<Vec3> i1g;                     // I1's image in each ground face
+  BeamSphereTest sphere_test;
+  std::vector<std::int64_t> keep_direct;
+  std::vector<std::vector<std::int64_t>> keep_between;
+  std::vector<Variant> variants;
+
+  void mirror_receivers(bool with_ground) {
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    mirrored.resize(with_ground ? faces.ground.size() : 0);
+    mirrored_at.resize(mirrored.size());
     for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
-      const bool last = direct && faces.ground[k] != f1;
+      const Plane& pg = faces.planes[faces.ground[k]];
+      for (auto r : receivers) {
+        const Vec3 xr = nodes[r].position;
+        const double d = dot(pg.normal, xr) - pg.offset;
+        mirrored_at[k].push_back(d != 0 ? xr - (2 * d) * pg.normal : Vec3{nan, nan, nan});
+        mirrored[k].push(mirrored_at[k].back() - xs);
+      }
+    }
+  }
+
+  // A receiver riding vehicle v takes its echoes off v from the faces its
+  // mount sees (a normal bound or image pass is void inside the vehicle).
+  const std::vector<std::uint32_t>* mount_of(std::uint32_t v, std::uint32_t r) const {
+    return static_cast<int>(v) == nodes[r].vehicle ? scene.faces_seen_from_mount(v, nodes[r].position) : nullptr;
+  }
+
+  // Which ground faces the vehicle meets f1's beam mirrored in (between,
+  // pyramid_g); whether any.
+  bool ground_beams(const Combo& c) {
+    bool any_between = false;
+    for (std::uint32_t k = 0; k < between.size() && !mirrored.empty(); ++k) {
+      const Plane& pg = faces.planes[faces.ground[k]];
+      const double dg = dot(pg.normal, c.i1) - pg.offset, hg = dot(pg.normal, c.sv.centre) - pg.offset;
+      between[k] = faces.ground[k] != c.f1 && dg != 0 && (dg > 0 ? hg + c.sv.radius > 0 : hg - c.sv.radius < 0);
+      if (!between[k]) continue;
+      pyramid_g[k].clear();
+      for (const auto& nrm : pyramid) pyramid_g[k].push_back(nrm - (2 * dot(pg.normal, nrm)) * pg.normal);
+      between[k] = !outside_pyramid(pyramid_g[k], c.i1 - (2 * dg) * pg.normal, c.sv, 0, c.spread_per_m);
+      any_between |= between[k] != 0;
+    }
+    return any_between;
+  }
+
+  // keep[i]: face fb + i lies in the beam of pyramid `planes` from `apex`.
+  void in_beam(const Combo& c, const std::vector<Vec3>& planes, const Vec3& apex, std::vector<std::int64_t>& keep) {
+    // (No plane to be behind: a zero normal keeps every face.)
+    const Plane no_plane{{0, 0, 0}, -1};
+    sphere_test.set_pyramid(planes);
+    sphere_test.run(faces, c.fb - faces.vehicle_begin[0], c.nf, apex, c.spread_per_m, no_plane, 1, keep);
+  }
+
+  // The reflection on vehicle face f from `from` towards `to`, then the
+  // way back through the ground (if any) to f1; appended when every point
+  // lies on its face.
+  void try_face(const Combo& c, Kind kind, std::uint32_t k, const Vec3& from, const Vec3& to, std::size_t f,
+                std::uint32_t r) {
+    const Plane& p1 = c.p1;
+    const Plane& pl = faces.planes[f];
+    const double df = dot(pl.normal, from) - pl.offset, d = dot(pl.normal, to) - pl.offset;
+    if (!(df * d > 0)) return;
+    const Vec3 q = crossing(from - (2 * df) * pl.normal, -df, to, d);
+    if (!on_face(f, q)) return;
+    Vec3 back = q;  // the point the line from I1 must reach through f1
+    const std::uint32_t g = kind == Kind::echo ? 0 : faces.ground[k];
+    if (kind != Kind::echo) {
+      const Plane& pg = faces.planes[g];
+      const double dq = dot(pg.normal, q) - pg.offset;
+      if (kind == Kind::between) {
+        // From I1's image (below the ground, I1 above) to q above it.
+        const double dg = dot(pg.normal, from) - pg.offset;
+        if (!(dg * dq < 0)) return;
+        back = crossing(from, dg, q, dq);
+        if (!on_face(g, back)) return;
+      } else {
+        // From q down to the ground, then up to the receiver.
+        const Vec3 xr = nodes[r].position;
+        const double dr = dot(pg.normal, xr) - pg.offset;
+        if (!(dq * dr > 0) || !on_face(g, crossing(to, -dr, q, dq))) return;
+      }
+    }
+    const double d1 = dot(p1.normal, back) - p1.offset;
+    if (!(c.ds * d1 > 0) || !on_face(c.f1, crossing(c.i1, -c.ds, back, d1))) return;
+    switch (kind) {
+      case Kind::echo: out.push_back({r, {faces.refs[c.f1], faces.refs[f]}}); break;
+      case Kind::between: out.push_back({r, {faces.refs[c.f1], faces.refs[g], faces.refs[f]}}); break;
+      case Kind::last: out.push_back({r, {faces.refs[c.f1], faces.refs[f], faces.refs[g]}}); break;
+    }
+  }
+
+  // Per face of the vehicle and kind of path, its image and one
+  // vectorised pass over the receivers (or their images in the ground),
+  // then the exact test for those marked.
+  void pass(const Combo& c, Kind kind, std::uint32_t k, const Vec3& from, const Receivers& to, std::size_t f) {
+    const Plane& pl = faces.planes[f];
+    const double df = dot(pl.normal, from) - pl.offset;
+    if (df == 0) return;
+    const auto& sf = faces.spheres[f];
+    local.tests += to.size();
+    // The pass is a necessary condition only (try_face decides), so its
+    // sphere is padded against rounding.
+    if (!mark_crossings(to, 0, pl, pl.offset - dot(pl.normal, xs), df, from - (2 * df) * pl.normal - xs, sf,
+                        sf.centre - xs, faces.tol[f] + 1e-9 * (sf.radius + 1), scratch))
+      return;
+    for (std::size_t ri = 0; ri < to.size(); ++ri) {
+      if (!scratch.hit[ri]) continue;
+      const std::uint32_t r = receivers[ri];
+      if (kind == Kind::echo && mount_of(c.v, r)) continue;
+      try_face(c, kind, k, from, kind == Kind::last ? mirrored_at[k][ri] : nodes[r].position, f, r);
+    }
+  }
+
+  // Two exact ways to the same candidates (try_face decides each): per
+  // face and kind an image and a vectorised pass over the receivers, or
+  // per receiver a lookup in the vehicle's normal table around the
+  // union of its kinds' normal windows. The passes cost faces x kinds x
+  // receivers / 8, the lookups receivers x (10 + 8 kinds) in the same
+  // unit (measured: equal on the ring road, whose one ground plane makes
+  // two kinds; on the demo city's ground tiles the lookups' union
+  // window holds most faces and the passes take half the time).
+  bool by_passes(const Combo& c) const {
+    std::uint64_t passes = 0;
+    int kinds = c.direct ? 1 : 0;
+    for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+      const bool last = c.direct && faces.ground[k] != c.f1;
       kinds += (between[k] ? 1 : 0) + (last ? 1 : 0);
-      for (std::uint32_t i = 0; i < nf; ++i)
+      for (std::uint32_t i = 0; i < c.nf; ++i)
         passes += (between[k] && keep_between[k][i] ? 1 : 0) + (last && keep_direct[i] ? 1 : 0);
     }
-    for (std::uint32_t i = 0; direct && i < nf; ++i) passes += keep_direct[i] ? 1 : 0;
+    for (std::uint32_t i = 0; c.direct && i < c.nf; ++i) passes += keep_direct[i] ? 1 : 0;
     const std::uint64_t lanes = (receivers.size() + Receivers::kLanes - 1) / Receivers::kLanes;
-    const bool by_passes = method == BeamVehicleMethod::cheaper
-                               ? passes * lanes < receivers.size() * (10 + 8 * static_cast<std::uint64_t>(kinds))
-                               : method == BeamVehicleMethod::passes;
-    if (by_passes) {
-      for (std::uint32_t f = fb; f < fe; ++f) {
-        const bool in_direct = direct && keep_direct[f - fb];
-        if (in_direct) pass(Kind::echo, 0, i1, rx, f);
-        for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
-          if (between[k] && keep_between[k][f - fb]) pass(Kind::between, k, i1g[k], rx, f);
-          if (in_direct && faces.ground[k] != f1) pass(Kind::last, k, i1, mirrored[k], f);
-        }
+    return method == BeamVehicleMethod::cheaper
+               ? passes * lanes < receivers.size() * (10 + 8 * static_cast<std::uint64_t>(kinds))
+               : method == BeamVehicleMethod::passes;
+  }
+
+  void search_by_passes(const Combo& c) {
+    for (std::uint32_t f = c.fb; f < c.fe; ++f) {
+      const bool in_direct = c.direct && keep_direct[f - c.fb];
+      if (in_direct) pass(c, Kind::echo, 0, c.i1, rx, f);
+      for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
+        if (between[k] && keep_between[k][f - c.fb]) pass(c, Kind::between, k, i1g[k], rx, f);
+        if (in_direct && faces.ground[k] != c.f1) pass(c, Kind::last, k, c.i1, mirrored[k], f);
       }
-      for (std::size_t ri = 0; direct && ri < receivers.size(); ++ri)
-        if (const auto* mount = mount_of(v, receivers[ri]))
-          for (auto lf : *mount) try_face(Kind::echo, 0, i1, nodes[receivers[ri]].position, fb + lf, receivers[ri]);
-      continue;
     }
+    for (std::size_t ri = 0; c.direct && ri < receivers.size(); ++ri)
+      if (const auto* mount = mount_of(c.v, receivers[ri]))
+        for (auto lf : *mount)
+          try_face(c, Kind::echo, 0, c.i1, nodes[receivers[ri]].position, c.fb + lf, receivers[ri]);
+  }
+
+  void search_by_lookups(const Combo& c) {
     for (std::size_t ri = 0; ri < receivers.size(); ++ri) {
       const std::uint32_t r = receivers[ri];
       const Vec3 xr = nodes[r].position;
@@ -978,44 +1157,59 @@ void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, c
       // the first window wide enough to hold the others (the lookup, not
       // the face tests, is what these cost).
       variants.clear();
-      const auto* mount = mount_of(v, r);
-      if (direct && !mount) variants.push_back({Kind::echo, 0, i1, xr});
+      const auto* mount = mount_of(c.v, r);
+      if (c.direct && !mount) variants.push_back({Kind::echo, 0, c.i1, xr});
       for (std::uint32_t k = 0; k < mirrored.size(); ++k) {
         if (between[k]) variants.push_back({Kind::between, k, i1g[k], xr});
-        if (direct && faces.ground[k] != f1 && !std::isnan(mirrored_at[k][ri][0]))
-          variants.push_back({Kind::last, k, i1, mirrored_at[k][ri]});
+        if (c.direct && faces.ground[k] != c.f1 && !std::isnan(mirrored_at[k][ri][0]))
+          variants.push_back({Kind::last, k, c.i1, mirrored_at[k][ri]});
       }
-      if (direct && mount)
-        for (auto lf : *mount) try_face(Kind::echo, 0, i1, xr, fb + lf, r);
+      if (c.direct && mount)
+        for (auto lf : *mount) try_face(c, Kind::echo, 0, c.i1, xr, c.fb + lf, r);
       if (variants.empty()) continue;
-      bool all = false;
-      for (auto& w : variants) all |= !normal_window(sv, w.from, w.to, w.bisector, w.cos_delta, w.sin_delta);
-      double angle = 10.0;  // every face
-      if (!all) {
-        // Bounds without inverse trigonometry: an angle is at most pi / 2
-        // times its chord (or its sine).
-        angle = 0;
-        for (const auto& w : variants) {
-          const double c = dot(variants[0].bisector, w.bisector);
-          const Vec3 chord = w.bisector - (c < 0 ? -1.0 : 1.0) * variants[0].bisector;
-          angle = std::max(angle, (kPi / 2) * (norm(chord) + w.sin_delta));
-        }
-      }
-      for (auto lf : scene.vehicle_faces_near_normal(v, variants[0].bisector, angle)) {
-        const std::size_t f = fb + lf;
+      const double angle = union_window(c.sv);
+      for (auto lf : scene.vehicle_faces_near_normal(c.v, variants[0].bisector, angle)) {
+        const std::size_t f = c.fb + lf;
         const Vec3& n = faces.planes[f].normal;
         for (const auto& w : variants)
           if (w.cos_delta <= -1 || std::fabs(dot(n, w.bisector)) >= w.cos_delta - 1e-12) {
             ++local.tests;
-            try_face(w.kind, w.k, w.from, w.to, f, r);
+            try_face(c, w.kind, w.k, w.from, w.to, f, r);
           }
       }
     }
   }
-  if (stats) {
-    stats->image_sources += local.image_sources;
-    stats->tests += local.tests;
+
+  // Sets each variant's normal window; returns the half-angle around the
+  // first one's bisector that holds them all (10: every face).
+  double union_window(const TraceScene::Sphere& sv) {
+    bool all = false;
+    for (auto& w : variants) all |= !normal_window(sv, w.from, w.to, w.bisector, w.cos_delta, w.sin_delta);
+    double angle = 10.0;  // every face
+    if (!all) {
+      // Bounds without inverse trigonometry: an angle is at most pi / 2
+      // times its chord (or its sine).
+      angle = 0;
+      for (const auto& w : variants) {
+        const double c = dot(variants[0].bisector, w.bisector);
+        const Vec3 chord = w.bisector - (c < 0 ? -1.0 : 1.0) * variants[0].bisector;
+        angle = std::max(angle, (kPi / 2) * (norm(chord) + w.sin_delta));
+      }
+    }
+    return angle;
   }
+};
+
+}  // namespace
+
+void beam_vehicle_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                             std::uint32_t src, const std::vector<std::uint32_t>& receivers,
+                             const std::vector<BeamVehicle>& combos, std::vector<ImageCandidate>& out,
+                             ImageSearchStats* stats, bool with_ground, BeamVehicleMethod method) {
+  if (combos.empty() || receivers.empty()) return;
+  BeamVehicleSearch search(scene, faces, nodes, src, receivers, out, with_ground, method);
+  for (const BeamVehicle& combo : combos) search.combination(combo);
+  search.add_stats(stats);
 }
 
 void small_face_beams(const ImageFaces& faces, const Vec3& src, std::vector<BeamVehicle>& combos) {
@@ -1063,34 +1257,63 @@ void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Ve
   }
 }
 
-void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
-                          std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
-                          const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
-                          ImageSearchStats* stats, bool skip_ground) {
-  if (beam_pairs.empty() || receivers.empty()) return;
-  ImageSearchStats local;
-  const Vec3 xs = nodes[src].position;
-  Receivers rx, scratch;
-  for (auto r : receivers) rx.push(nodes[r].position - xs);
-  scratch.n = rx.size();
-  scratch.pad();
-  auto on_face = [&](std::size_t f, const Vec3& p) {
-    const Vec3 w = p - faces.spheres[f].centre;
-    const double rr = faces.spheres[f].radius + faces.tol[f];
-    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
-  };
-  auto is_ground = [&](std::uint32_t f) { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); };
+namespace {
+
+// beam_pair_candidates' search, one lit pair (f1, f2) at a time: the beam
+// after f2, the third faces in it, and each third face's receivers.
+class BeamPairSearch : public SourceSearch {
+ public:
+  BeamPairSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+                 const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, bool skip_ground)
+      : SourceSearch(scene, faces, nodes, src, receivers, out), skip_ground(skip_ground) {}
+
+  void pair(const BeamPair& bp) {
+    f1 = bp.f1;
+    f2 = bp.f2;
+    if (!unfold()) return;
+    ++local.image_sources;
+    beam_after_f2();
+    // Static third faces: down the sphere tree, in the beam and in front of
+    // f2. Three static faces with one on the ground are image_candidates'
+    // (ground_order3); after a vehicle face the ground is this search's.
+    const bool skip = skip_ground && f2_static;
+    third_faces.clear();
+    if (!(skip && (is_ground(f1) || is_ground(f2)))) {
+      static_third_faces(skip);
+      std::sort(third_faces.begin(), third_faces.end());  // the output's order does not depend on the tree's
+    }
+    // Vehicles in the beam: each of their faces in it (no normal index:
+    // the receivers riding the vehicle included). Not after a vehicle face
+    // (two cars after a wall: +17 % of a 120-vehicle demo snapshot, and no
+    // such path missing on the snapshots measured).
+    if (f2_static && !faces.vehicle_spheres.empty()) vehicle_third_faces();
+    for (const std::uint32_t f3 : third_faces) third_face(f3);
+  }
+
+ private:
+  const bool skip_ground;
   std::vector<Vec3> pyramid, mirrored;
   std::vector<std::uint32_t> tree_stack, third_faces, kept_vehicles;
   BeamSphereTest sphere_test;
   std::vector<std::int64_t> keep;
-  for (const BeamPair& bp : beam_pairs) {
-    // (Not a structured binding: clang before 16 cannot capture those.)
-    const std::uint32_t f1 = bp.f1, f2 = bp.f2;
-    // The images of the source in f1, then f2 (img[0] = the source), and
-    // each one's signed distance from the next face's plane.
-    std::array<Vec3, 3> img;
-    std::array<double, 2> dist{};
+  // The pair being searched: the images of the source in f1, then f2
+  // (img[0] = the source), and each one's signed distance from the next
+  // face's plane; the beam after f2 (pyramid, spread_per_m, cone when
+  // narrow) and the side of f2 it leaves on.
+  std::uint32_t f1 = 0, f2 = 0;
+  std::array<Vec3, 3> img;
+  std::array<double, 2> dist{};
+  bool f2_static = false;
+  double spread_per_m = 0;
+  Cone cone;
+  bool narrow = false;
+  int side = 1;
+
+  bool is_ground(std::uint32_t f) const { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); }
+
+  // The images in f1 and f2; false when one lies on its face's plane.
+  bool unfold() {
+    dist = {};
     img[0] = xs;
     bool ok = true;
     for (int k = 0; k < 2 && ok; ++k) {
@@ -1099,121 +1322,131 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
       ok = dist[k] != 0;
       img[k + 1] = img[k] - (2 * dist[k]) * pl.normal;
     }
-    if (!ok) continue;
-    ++local.image_sources;
-    const Plane& p1 = faces.planes[f1];
+    return ok;
+  }
+
+  // The beam after f2: apex I2, inside the pyramid through f2's outline
+  // and inside f1's, mirrored in f2's plane (I1's image is I2), padded
+  // by both faces' on-face tolerances carried to the distance.
+  // (A vehicle face as f2 has no outline here: the cone through its
+  // sphere instead, narrow as vehicle faces are small.)
+  void beam_after_f2() {
     const Plane& p2 = faces.planes[f2];
-    // From the third reflection's point q3 back through f2 and f1.
-    auto back_through_f2_f1 = [&](const Vec3& q3) {
-      const double d3 = dot(p2.normal, q3) - p2.offset;
-      if (!(dist[1] * d3 > 0)) return false;
-      ++local.tests;
-      const Vec3 q2 = crossing(img[2], -dist[1], q3, d3);
-      if (!on_face(f2, q2)) return false;
-      const double d2 = dot(p1.normal, q2) - p1.offset;
-      return dist[0] * d2 > 0 && on_face(f1, crossing(img[1], -dist[0], q2, d2));
-    };
-    // The beam after f2: apex I2, inside the pyramid through f2's outline
-    // and inside f1's, mirrored in f2's plane (I1's image is I2), padded
-    // by both faces' on-face tolerances carried to the distance.
-    // (A vehicle face as f2 has no outline here: the cone through its
-    // sphere instead, narrow as vehicle faces are small.)
-    const bool f2_static = f2 < faces.static_count;
+    f2_static = f2 < faces.static_count;
     pyramid.clear();
     if (f2_static) outline_pyramid(faces, f2, img[2], pyramid);
     mirrored.clear();
     outline_pyramid(faces, f1, img[1], mirrored);
     for (const auto& nrm : mirrored) pyramid.push_back(nrm - (2 * dot(p2.normal, nrm)) * p2.normal);
-    const double spread_per_m = 2 * faces.tol[f1] / std::fabs(dist[0]) + 2 * faces.tol[f2] / std::fabs(dist[1]);
-    Cone cone;
-    const bool narrow =
+    spread_per_m = 2 * faces.tol[f1] / std::fabs(dist[0]) + 2 * faces.tol[f2] / std::fabs(dist[1]);
+    cone = Cone{};
+    narrow =
         !f2_static &&
         cone_to(img[2], TraceScene::Sphere{faces.spheres[f2].centre, faces.spheres[f2].radius + faces.tol[f2]}, cone);
-    auto outside = [&](const TraceScene::Sphere& sp, double tol) {
-      const Vec3 w = sp.centre - img[2];
-      const double d = norm(w);
-      const double pad = spread_per_m * (d + sp.radius) + tol + 1e-6 * (d + sp.radius);
-      for (const auto& nrm : pyramid)
-        if (dot(nrm, w) < -(sp.radius + pad)) return true;
-      if (!narrow || d <= sp.radius + pad) return false;
-      Cone c;
-      c.axis = (1.0 / d) * w;
-      c.sin_h = (sp.radius + pad) / d;
-      c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
-      return !cones_overlap(cone, c);
-    };
-    const int side = dist[1] > 0 ? 1 : -1;  // I1's side of f2: where the beam leaves it
-    auto behind = [&](const TraceScene::Sphere& sp) {
-      return side * (dot(p2.normal, sp.centre) - p2.offset) + sp.radius <= 0;
-    };
+    side = dist[1] > 0 ? 1 : -1;  // I1's side of f2: where the beam leaves it
+  }
 
-    // Static third faces: down the sphere tree, in the beam and in front of
-    // f2. Three static faces with one on the ground are image_candidates'
-    // (ground_order3); after a vehicle face the ground is this search's.
-    const bool skip = skip_ground && f2_static;
-    third_faces.clear();
-    if (!(skip && (is_ground(f1) || is_ground(f2)))) {
-      walk_static_tree(
-          faces, tree_stack,
-          [&](const TraceScene::Sphere& sp, double tol) { return behind(sp) || outside(sp, tol); },
-          [&](std::uint32_t f3) {
-            if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
-                outside(faces.spheres[f3], faces.tol[f3]))
-              return;
-            if (skip && is_ground(f3)) return;
-            third_faces.push_back(f3);
-          });
-      std::sort(third_faces.begin(), third_faces.end());  // the output's order does not depend on the tree's
-    }
-    // Vehicles in the beam: each of their faces in it (no normal index:
-    // the receivers riding the vehicle included). Not after a vehicle face
-    // (two cars after a wall: +17 % of a 120-vehicle demo snapshot, and no
-    // such path missing on the snapshots measured). The same tests as
-    // behind() and outside() (not narrow: f2 is static), vectorised over
-    // the vehicles, then over each kept vehicle's faces.
-    if (f2_static && !faces.vehicle_spheres.empty()) {
-      sphere_test.set_pyramid(pyramid);
-      auto keep_spheres = [&](std::uint32_t begin, std::uint32_t count) {
-        sphere_test.run(faces, begin, count, img[2], spread_per_m, p2, side, keep);
-      };
-      const auto vehicles = static_cast<std::uint32_t>(faces.vehicle_spheres.size());
-      keep_spheres(faces.beam_vehicles_begin, vehicles);
-      kept_vehicles.clear();
-      for (std::uint32_t v = 0; v < vehicles; ++v)
-        if (keep[v]) kept_vehicles.push_back(v);
-      for (const std::uint32_t v : kept_vehicles) {
-        const std::uint32_t b = faces.vehicle_begin[v], e = faces.vehicle_begin[v + 1];
-        keep_spheres(b - faces.vehicle_begin[0], e - b);
-        for (std::uint32_t f = b; f < e; ++f)
-          if (f != f2 && keep[f - b]) third_faces.push_back(f);
-      }
-    }
-    for (const std::uint32_t f3 : third_faces) {
-      // The third face's image, the receivers seen through it (a vectorised
-      // pass), then the walk back.
-      const Plane& p3 = faces.planes[f3];
-      const double d3 = dot(p3.normal, img[2]) - p3.offset;
-      if (d3 == 0) continue;
-      const Vec3 i3 = img[2] - (2 * d3) * p3.normal;
-      ++local.image_sources;
-      local.tests += rx.size();
-      const auto& s3 = faces.spheres[f3];
-      if (!mark_crossings(rx, 0, p3, p3.offset - dot(p3.normal, xs), d3, i3 - xs, s3, s3.centre - xs, faces.tol[f3],
-                          scratch))
-        continue;
-      for (std::size_t r = 0; r < rx.size(); ++r) {
-        if (!scratch.hit[r]) continue;
-        const Vec3 xr = nodes[receivers[r]].position;
-        const Vec3 q3 = crossing(i3, -d3, xr, dot(p3.normal, xr) - p3.offset);
-        if (on_face(f3, q3) && back_through_f2_f1(q3))
-          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f3]}});
-      }
+  bool outside(const TraceScene::Sphere& sp, double tol) const {
+    const Vec3 w = sp.centre - img[2];
+    const double d = norm(w);
+    const double pad = spread_per_m * (d + sp.radius) + tol + 1e-6 * (d + sp.radius);
+    for (const auto& nrm : pyramid)
+      if (dot(nrm, w) < -(sp.radius + pad)) return true;
+    if (!narrow || d <= sp.radius + pad) return false;
+    Cone c;
+    c.axis = (1.0 / d) * w;
+    c.sin_h = (sp.radius + pad) / d;
+    c.cos_h = std::sqrt(1 - c.sin_h * c.sin_h);
+    return !cones_overlap(cone, c);
+  }
+  bool behind(const TraceScene::Sphere& sp) const {
+    const Plane& p2 = faces.planes[f2];
+    return side * (dot(p2.normal, sp.centre) - p2.offset) + sp.radius <= 0;
+  }
+
+  // The static faces in the beam, in front of f2 (the ground skipped with
+  // `skip`), into third_faces.
+  void static_third_faces(bool skip) {
+    walk_static_tree(
+        faces, tree_stack,
+        [&](const TraceScene::Sphere& sp, double tol) { return behind(sp) || outside(sp, tol); },
+        [&](std::uint32_t f3) {
+          if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
+              outside(faces.spheres[f3], faces.tol[f3]))
+            return;
+          if (skip && is_ground(f3)) return;
+          third_faces.push_back(f3);
+        });
+  }
+
+  // The faces of the vehicles in the beam, into third_faces: the same tests
+  // as behind() and outside() (not narrow: f2 is static), vectorised over
+  // the vehicles, then over each kept vehicle's faces.
+  void vehicle_third_faces() {
+    const Plane& p2 = faces.planes[f2];
+    sphere_test.set_pyramid(pyramid);
+    auto keep_spheres = [&](std::uint32_t begin, std::uint32_t count) {
+      sphere_test.run(faces, begin, count, img[2], spread_per_m, p2, side, keep);
+    };
+    const auto vehicles = static_cast<std::uint32_t>(faces.vehicle_spheres.size());
+    keep_spheres(faces.beam_vehicles_begin, vehicles);
+    kept_vehicles.clear();
+    for (std::uint32_t v = 0; v < vehicles; ++v)
+      if (keep[v]) kept_vehicles.push_back(v);
+    for (const std::uint32_t v : kept_vehicles) {
+      const std::uint32_t b = faces.vehicle_begin[v], e = faces.vehicle_begin[v + 1];
+      keep_spheres(b - faces.vehicle_begin[0], e - b);
+      for (std::uint32_t f = b; f < e; ++f)
+        if (f != f2 && keep[f - b]) third_faces.push_back(f);
     }
   }
-  if (stats) {
-    stats->image_sources += local.image_sources;
-    stats->tests += local.tests;
+
+  // From the third reflection's point q3 back through f2 and f1.
+  bool back_through_f2_f1(const Vec3& q3) {
+    const Plane& p1 = faces.planes[f1];
+    const Plane& p2 = faces.planes[f2];
+    const double d3 = dot(p2.normal, q3) - p2.offset;
+    if (!(dist[1] * d3 > 0)) return false;
+    ++local.tests;
+    const Vec3 q2 = crossing(img[2], -dist[1], q3, d3);
+    if (!on_face(f2, q2)) return false;
+    const double d2 = dot(p1.normal, q2) - p1.offset;
+    return dist[0] * d2 > 0 && on_face(f1, crossing(img[1], -dist[0], q2, d2));
   }
+
+  // The third face's image, the receivers seen through it (a vectorised
+  // pass), then the walk back.
+  void third_face(std::uint32_t f3) {
+    const Plane& p3 = faces.planes[f3];
+    const double d3 = dot(p3.normal, img[2]) - p3.offset;
+    if (d3 == 0) return;
+    const Vec3 i3 = img[2] - (2 * d3) * p3.normal;
+    ++local.image_sources;
+    local.tests += rx.size();
+    const auto& s3 = faces.spheres[f3];
+    if (!mark_crossings(rx, 0, p3, p3.offset - dot(p3.normal, xs), d3, i3 - xs, s3, s3.centre - xs, faces.tol[f3],
+                        scratch))
+      return;
+    for (std::size_t r = 0; r < rx.size(); ++r) {
+      if (!scratch.hit[r]) continue;
+      const Vec3 xr = nodes[receivers[r]].position;
+      const Vec3 q3 = crossing(i3, -d3, xr, dot(p3.normal, xr) - p3.offset);
+      if (on_face(f3, q3) && back_through_f2_f1(q3))
+        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[f3]}});
+    }
+  }
+};
+
+}  // namespace
+
+void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                          std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
+                          const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
+                          ImageSearchStats* stats, bool skip_ground) {
+  if (beam_pairs.empty() || receivers.empty()) return;
+  BeamPairSearch search(scene, faces, nodes, src, receivers, out, skip_ground);
+  for (const BeamPair& bp : beam_pairs) search.pair(bp);
+  search.add_stats(stats);
 }
 
 }  // namespace raysweep::tracer
