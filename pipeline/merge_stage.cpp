@@ -162,16 +162,9 @@ json run_merge_stage(const MergeArgs& args) {
   header.shard.clear();
   header.provenance = provenance_for(header.provenance, first.rec.out, args.out);
   const fs::path out(args.out);
-  if (!out.parent_path().empty()) fs::create_directories(out.parent_path());
-  const fs::path tmp = out.string() + ".tmp";
+  StagedFile staged(out);
+  const fs::path& tmp = staged.path();
   std::uint64_t frames = 0;
-  struct RemoveUnlessRenamed {
-    fs::path p;
-    ~RemoveUnlessRenamed() {
-      std::error_code ec;
-      fs::remove(p, ec);
-    }
-  } guard{tmp};
   if (args.virtual_dataset) {
     // Mappings name the shards relative to the merged file's folder, so the
     // folder with its shards can move as a whole.
@@ -193,7 +186,7 @@ json run_merge_stage(const MergeArgs& args) {
     }
     writer.finish(first.reader->nodes(), first.reader->objects());
   }
-  fs::rename(tmp, out);
+  staged.commit();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   json record = {{"merged", args.out}, {"virtual", args.virtual_dataset}, {"shards", json::array()}};

@@ -372,17 +372,16 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
                {"tracer_config", config.dump()},
                {"provenance", prov.dump()}};
   if (!check.is_null()) meta["check_vs_trace"] = check.dump();
-  if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
   write_radiomap_vdb(args.out, v, s.z_min_m, voxels, grids, meta);
 
   json summary = {{"out", args.out}, {"voxels", voxels.size()}, {"region", region}, {"tx", per_tx},
                   {"solve_s", solve_s}, {"check", check}};
   if (!args.png.empty()) {
     const fs::path png(args.png);
-    const fs::path tmp = png.parent_path() / (png.stem().string() + ".tmp.png");
-    if (!png.parent_path().empty()) fs::create_directories(png.parent_path());
-    if (run_python_script("radiomap_slice.py", {args.out, args.scene, tmp.string()})) {
-      fs::rename(tmp, png);
+    // The slice script infers the picture's format from the extension.
+    StagedFile staged(png, png.parent_path() / (png.stem().string() + ".tmp.png"));
+    if (run_python_script("radiomap_slice.py", {args.out, args.scene, staged.path().string()})) {
+      staged.commit();
       summary["png"] = png.string();
     }
   }

@@ -16,6 +16,7 @@
 #include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
@@ -114,11 +115,10 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
   std::tie(header.time_start_s, header.time_end_s) = gs::sinr_window(trace, cfg);
 
   const fs::path out(args.out);
-  if (out.has_parent_path()) fs::create_directories(out.parent_path());
-  const fs::path tmp = out.string() + ".tmp";
+  StagedFile staged(out);
   gs::SinrRunStats stats;
-  try {
-    gs::SinrWriter writer(tmp, header);
+  {
+    gs::SinrWriter writer(staged.path(), header);
     auto progress_at = std::chrono::steady_clock::now();
     stats = gs::run_sinr(trace, *channel, cfg, rats, args.schedule_from.empty() ? nullptr : &reused, writer,
                          [&](const gs::SinrRunProgress& p) {
@@ -128,12 +128,8 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
                            spdlog::info("sinr {}: {}/{} transmissions evaluated ({:.0f}%)", model.label(), p.done,
                                         p.total, 100.0 * static_cast<double>(p.done) / std::max<double>(1, p.total));
                          });
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
   }
-  fs::rename(tmp, out);
+  staged.commit();
 
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   json summary = {{"out", args.out},

@@ -352,11 +352,11 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
     header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
     header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
   }
-  const fs::path tmp = out.string() + ".tmp";
+  StagedFile staged(out);
   json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
                  {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
   {
-    generators::DatasetWriter writer(tmp, header);
+    generators::DatasetWriter writer(staged.path(), header);
     for (std::uint64_t b = 0; b <= block_index; ++b) {
       if (!mine(b)) continue;
       generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
@@ -372,7 +372,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
     for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
     writer.finish(node_table, sweep.object_names(ids));
   }
-  fs::rename(tmp, out);
+  staged.commit();
   fs::remove_all(parts);
   // A merge record next to the file describes an earlier, merged version of it.
   if (!args.shard) fs::remove(out.string() + ".merge.json");
