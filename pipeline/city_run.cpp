@@ -184,256 +184,322 @@ CityOutputs city_outputs(const std::string& city_file, const std::string& out_di
   return o;
 }
 
-json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
-  const CityConfig city = load_city_config(args.city);
-  const fs::path out = args.out.empty() ? fs::path(city.out) : fs::path(args.out);
-  const json root = effective_config(args.city);
-  // Every table is checked before the first stage runs: a typo in [sweep]
-  // must not surface after an hour of scene building.
+namespace {
+
+// One `raysweep run`: the city, its checked settings, the stamps of its
+// stages, and the summary the stages add to.
+struct CityRun {
+  CityRun(const CityRunArgs& a, const std::vector<std::string>& v) : args(a), argv(v), city(load_city_config(a.city)) {}
+
+  const CityRunArgs& args;
+  const std::vector<std::string>& argv;
+  CityConfig city;
+  fs::path out;
+  json root;  // the effective config
+  SinrSettings sinr;
+  Ns3Settings ns3;
+  int stages = 4;
+  // Shards and the merge share the scene, the vehicle library and the traffic
+  // built once before them (`--until traffic`): several processes building
+  // them at once into one folder would race, and SUMO need not run N times.
+  bool shared_only = false;
+  std::string out_opt;  // " --out OUT" when given, for the hints
+  Stamps stamps{fs::path()};
+  std::string version = std::string(kVersion) + "+" + kGitHash;
+  json summary;
+
+  // Whether a stage may be skipped as up to date (shards and the merge never rebuild the shared stages).
+  bool reuse() const { return !args.force || shared_only; }
+
+  std::invalid_argument not_built(const std::string& stage, const fs::path& dir) const {
+    return std::invalid_argument(dir.string() + ": the " + stage + " stage of city " + city.name +
+                                 " is not built or out of date; run `raysweep run " + args.city + out_opt +
+                                 " --until traffic` once before the shards and the merge");
+  }
+};
+
+std::string file_hash(const std::string& p) { return p.empty() ? std::string() : sha256_file(p); }
+
+// Every table is checked before the first stage runs: a typo in [sweep]
+// must not surface after an hour of scene building.
+CityRun start_city_run(const CityRunArgs& args, const std::vector<std::string>& argv) {
+  CityRun r(args, argv);
+  r.out = args.out.empty() ? fs::path(r.city.out) : fs::path(args.out);
+  r.root = effective_config(args.city);
   load_vehicles_config(args.city);
   load_trace_config(args.city);
   load_sweep_config(args.city);
-  const SinrSettings sinr = load_sinr_settings(args.city);
-  const Ns3Settings ns3 = load_ns3_settings(args.city);
-  const int stages = sinr.present && sinr.enabled ? 5 : 4;
-  if (city.fcd.empty()) load_traffic_args(args.city, city, "");
+  r.sinr = load_sinr_settings(args.city);
+  r.ns3 = load_ns3_settings(args.city);
+  r.stages = r.sinr.present && r.sinr.enabled ? 5 : 4;
+  if (r.city.fcd.empty()) load_traffic_args(args.city, r.city, "");
   if (args.shard && args.merge) throw std::invalid_argument("--shard and --merge: trace every shard first, then merge once");
   if (!args.until.empty() && (args.shard || args.merge))
     throw std::invalid_argument("--until with --shard or --merge: build the shared stages first, then the shards");
   if (!args.until.empty() && args.until != "scene" && args.until != "vehicles" && args.until != "traffic" &&
       args.until != "sweep")
     throw std::invalid_argument("--until " + args.until + ": expected scene, vehicles, traffic or sweep");
-  // Shards and the merge share the scene, the vehicle library and the traffic
-  // built once before them (`--until traffic`): several processes building
-  // them at once into one folder would race, and SUMO need not run N times.
-  const bool shared_only = args.shard || args.merge;
-  const std::string out_opt = args.out.empty() ? "" : " --out " + args.out;
-  auto not_built = [&](const std::string& stage, const fs::path& dir) {
-    return std::invalid_argument(dir.string() + ": the " + stage + " stage of city " + city.name +
-                                 " is not built or out of date; run `raysweep run " + args.city + out_opt +
-                                 " --until traffic` once before the shards and the merge");
-  };
-  const Stamps stamps(out / ".stamps");
-  const std::string version = std::string(kVersion) + "+" + kGitHash;
-  json summary = {{"city", city.name}, {"out", out.string()}};
-  auto file_hash = [](const std::string& p) { return p.empty() ? std::string() : sha256_file(p); };
+  r.shared_only = args.shard || args.merge;
+  r.out_opt = args.out.empty() ? "" : " --out " + args.out;
+  r.stamps = Stamps(r.out / ".stamps");
+  r.summary = {{"city", r.city.name}, {"out", r.out.string()}};
+  return r;
+}
 
-  // Scene.
-  const fs::path scene_dir = out / "scene";
-  const std::string scene_key = sha256_text(version + tables_text(root, {"scene"}) + file_hash(city.osm) +
-                                            file_hash(city.net) + file_hash(city.mitsuba));
-  if ((!args.force || shared_only) && stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
-    spdlog::info("[1/{}] scene: up to date ({})", stages, scene_dir.string());
-  } else {
-    if (shared_only) throw not_built("scene", scene_dir);
-    spdlog::info("[1/{}] scene: building {}", stages, scene_dir.string());
-    SceneArgs s;
-    if (city.mitsuba.empty()) {
-      s.osm = city.osm;
-      s.net = city.net;
-    } else {
-      s.from_mitsuba = city.mitsuba;
-    }
-    s.out = scene_dir.string();
-    s.config = args.city;
-    run_scene_stage(s, argv);
-    stamps.mark("scene", scene_key);
+void city_scene(CityRun& r, const fs::path& scene_dir) {
+  const std::string scene_key = sha256_text(r.version + tables_text(r.root, {"scene"}) + file_hash(r.city.osm) +
+                                            file_hash(r.city.net) + file_hash(r.city.mitsuba));
+  if (r.reuse() && r.stamps.up_to_date("scene", scene_key, scene_dir / "scene.glb")) {
+    spdlog::info("[1/{}] scene: up to date ({})", r.stages, scene_dir.string());
+    return;
   }
-  if (args.until == "scene") return summary;
-
-  // Vehicle library.
-  const fs::path vehicles_dir = out / "vehicles";
-  const std::string vehicles_key = sha256_text(version + tables_text(root, {"vehicles"}));
-  if ((!args.force || shared_only) && stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
-    spdlog::info("[2/{}] vehicles: up to date ({})", stages, vehicles_dir.string());
+  if (r.shared_only) throw r.not_built("scene", scene_dir);
+  spdlog::info("[1/{}] scene: building {}", r.stages, scene_dir.string());
+  SceneArgs s;
+  if (r.city.mitsuba.empty()) {
+    s.osm = r.city.osm;
+    s.net = r.city.net;
   } else {
-    if (shared_only) throw not_built("vehicles", vehicles_dir);
-    spdlog::info("[2/{}] vehicles: building {}", stages, vehicles_dir.string());
-    VehiclesArgs v;
-    v.out = vehicles_dir.string();
-    v.config = args.city;
-    run_vehicles_stage(v, argv);
-    stamps.mark("vehicles", vehicles_key);
+    s.from_mitsuba = r.city.mitsuba;
   }
-  if (args.until == "vehicles") return summary;
+  s.out = scene_dir.string();
+  s.config = r.args.city;
+  run_scene_stage(s, r.argv);
+  r.stamps.mark("scene", scene_key);
+}
 
-  // Traffic.
-  const fs::path traffic_dir = out / "traffic";
-  std::string fcd = city.fcd;
+void city_vehicles(CityRun& r, const fs::path& vehicles_dir) {
+  const std::string vehicles_key = sha256_text(r.version + tables_text(r.root, {"vehicles"}));
+  if (r.reuse() && r.stamps.up_to_date("vehicles", vehicles_key, vehicles_dir / "manifest.json")) {
+    spdlog::info("[2/{}] vehicles: up to date ({})", r.stages, vehicles_dir.string());
+    return;
+  }
+  if (r.shared_only) throw r.not_built("vehicles", vehicles_dir);
+  spdlog::info("[2/{}] vehicles: building {}", r.stages, vehicles_dir.string());
+  VehiclesArgs v;
+  v.out = vehicles_dir.string();
+  v.config = r.args.city;
+  run_vehicles_stage(v, r.argv);
+  r.stamps.mark("vehicles", vehicles_key);
+}
+
+// What the sweep reads of the traffic: the FCD trace, its vType files and
+// the simulation's end (< 0 unknown).
+struct CityTraffic {
+  std::string fcd;
   std::vector<std::string> vtype_files;
   double eta_end = -1;
-  if (!fcd.empty()) {
-    spdlog::info("[3/{}] traffic: using the FCD trace {}", stages, fcd);
-  } else {
-    const TrafficArgs t = load_traffic_args(args.city, city, traffic_dir.string());
-    const std::string traffic_key =
-        sha256_text(version + tables_text(root, {"traffic"}) + file_hash(city.net) + file_hash(city.sumocfg));
-    if ((!args.force || shared_only) && stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
-      spdlog::info("[3/{}] traffic: up to date ({})", stages, traffic_dir.string());
-    } else {
-      if (shared_only) throw not_built("traffic", traffic_dir);
-      spdlog::info("[3/{}] traffic: running SUMO into {}", stages, traffic_dir.string());
-      run_traffic_stage(t, argv);
-      stamps.mark("traffic", traffic_key);
-    }
-    eta_end = read_traffic_record(traffic_dir, fcd, vtype_files);
-  }
-  if (!city.sumocfg.empty() && vtype_files.empty()) vtype_files.push_back(city.sumocfg);
-  if (args.until == "traffic") return summary;
+};
 
-  // Sweep.
-  const fs::path dataset = out / "dataset.h5";
-  std::string sweep_key = version + tables_text(root, {"sweep", "radio", "tracer", "materials"}) + file_hash(fcd) +
-                          file_hash(city.rsus) + file_hash((scene_dir / "scene.glb").string()) +
+CityTraffic city_traffic(CityRun& r, const fs::path& traffic_dir) {
+  CityTraffic t{r.city.fcd, {}, -1};
+  if (!t.fcd.empty()) {
+    spdlog::info("[3/{}] traffic: using the FCD trace {}", r.stages, t.fcd);
+  } else {
+    const TrafficArgs a = load_traffic_args(r.args.city, r.city, traffic_dir.string());
+    const std::string traffic_key =
+        sha256_text(r.version + tables_text(r.root, {"traffic"}) + file_hash(r.city.net) + file_hash(r.city.sumocfg));
+    if (r.reuse() && r.stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
+      spdlog::info("[3/{}] traffic: up to date ({})", r.stages, traffic_dir.string());
+    } else {
+      if (r.shared_only) throw r.not_built("traffic", traffic_dir);
+      spdlog::info("[3/{}] traffic: running SUMO into {}", r.stages, traffic_dir.string());
+      run_traffic_stage(a, r.argv);
+      r.stamps.mark("traffic", traffic_key);
+    }
+    t.eta_end = read_traffic_record(traffic_dir, t.fcd, t.vtype_files);
+  }
+  if (!r.city.sumocfg.empty() && t.vtype_files.empty()) t.vtype_files.push_back(r.city.sumocfg);
+  return t;
+}
+
+// The sweep into <out>/dataset.h5: traced, merged from the shards, or one
+// shard traced (then the run stops: returns false).
+bool city_sweep(CityRun& r, const CityTraffic& t, const fs::path& scene_dir, const fs::path& vehicles_dir,
+                const fs::path& dataset) {
+  std::string sweep_key = r.version + tables_text(r.root, {"sweep", "radio", "tracer", "materials"}) +
+                          file_hash(t.fcd) + file_hash(r.city.rsus) + file_hash((scene_dir / "scene.glb").string()) +
                           file_hash((vehicles_dir / "manifest.json").string());
-  for (const auto& f : vtype_files) sweep_key += file_hash(f);
+  for (const auto& f : t.vtype_files) sweep_key += file_hash(f);
   sweep_key = sha256_text(sweep_key);
   SweepArgs sweep_args;
   sweep_args.scene = scene_dir.string();
   sweep_args.vehicles = vehicles_dir.string();
-  sweep_args.fcd = fcd;
-  sweep_args.vtypes = vtype_files;
-  sweep_args.rsus = city.rsus;
+  sweep_args.fcd = t.fcd;
+  sweep_args.vtypes = t.vtype_files;
+  sweep_args.rsus = r.city.rsus;
   sweep_args.out = dataset.string();
-  sweep_args.config = args.city;
-  sweep_args.resume = args.resume;
-  sweep_args.eta_end_s = eta_end;
+  sweep_args.config = r.args.city;
+  sweep_args.resume = r.args.resume;
+  sweep_args.eta_end_s = t.eta_end;
+  const auto& args = r.args;
   if (args.shard) {
     // One shard: its blocks into <out>/shards/, stamped on its own so that a
     // rerun (an MPI job restarted with --resume) skips the finished shards.
-    const fs::path file = out / "shards" / shard_file_name(*args.shard);
+    const fs::path file = r.out / "shards" / shard_file_name(*args.shard);
     const std::string stage = "sweep." + args.shard->name();
-    if (!args.force && stamps.up_to_date(stage, sweep_key, file)) {
-      spdlog::info("[4/{}] sweep shard {}: up to date ({})", stages, args.shard->name(), file.string());
+    if (!args.force && r.stamps.up_to_date(stage, sweep_key, file)) {
+      spdlog::info("[4/{}] sweep shard {}: up to date ({})", r.stages, args.shard->name(), file.string());
     } else {
-      spdlog::info("[4/{}] sweep shard {}: tracing its blocks of {} into {}", stages, args.shard->name(), fcd,
+      spdlog::info("[4/{}] sweep shard {}: tracing its blocks of {} into {}", r.stages, args.shard->name(), t.fcd,
                    file.string());
       sweep_args.out = file.string();
       sweep_args.shard = args.shard;
-      summary["sweep"] = run_sweep_stage(sweep_args, argv);
-      stamps.mark(stage, sweep_key);
+      r.summary["sweep"] = run_sweep_stage(sweep_args, r.argv);
+      r.stamps.mark(stage, sweep_key);
     }
-    summary["shard"] = file.string();
-    return summary;
+    r.summary["shard"] = file.string();
+    return false;
   }
   if (args.merge) {
-    const auto files = shard_files(out / "shards", args.merge_count, out / ".stamps", sweep_key,
-                                   "; run `raysweep run " + args.city + out_opt + " --shard I/N` for I = 0..N-1 first");
-    spdlog::info("[4/{}] sweep: merging {} shard files of {} into {}", stages, files.size(), (out / "shards").string(),
-                 dataset.string());
+    const auto files = shard_files(r.out / "shards", args.merge_count, r.out / ".stamps", sweep_key,
+                                   "; run `raysweep run " + args.city + r.out_opt + " --shard I/N` for I = 0..N-1 first");
+    spdlog::info("[4/{}] sweep: merging {} shard files of {} into {}", r.stages, files.size(),
+                 (r.out / "shards").string(), dataset.string());
     MergeArgs m;
     m.shards = files;
     m.out = dataset.string();
     m.virtual_dataset = args.virtual_dataset;
-    summary["merge"] = run_merge_stage(m);
-    stamps.mark("sweep", sweep_key);
-  } else if (!args.force && stamps.up_to_date("sweep", sweep_key, dataset)) {
-    spdlog::info("[4/{}] sweep: up to date ({})", stages, dataset.string());
+    r.summary["merge"] = run_merge_stage(m);
+    r.stamps.mark("sweep", sweep_key);
+  } else if (!args.force && r.stamps.up_to_date("sweep", sweep_key, dataset)) {
+    spdlog::info("[4/{}] sweep: up to date ({})", r.stages, dataset.string());
   } else {
-    spdlog::info("[4/{}] sweep: tracing {} into {}", stages, fcd, dataset.string());
-    summary["sweep"] = run_sweep_stage(sweep_args, argv);
-    stamps.mark("sweep", sweep_key);
+    spdlog::info("[4/{}] sweep: tracing {} into {}", r.stages, t.fcd, dataset.string());
+    r.summary["sweep"] = run_sweep_stage(sweep_args, r.argv);
+    r.stamps.mark("sweep", sweep_key);
   }
-  if (args.until == "sweep") {
-    summary["dataset"] = dataset.string();
-    return summary;
-  }
-  // The picture people look at first: path gain against distance per LoS class.
-  const fs::path png = out / "dataset.png";
+  return true;
+}
+
+// The picture people look at first (path gain against distance per LoS
+// class), the dataset's summary, and its problems against the schema.
+std::vector<std::string> city_dataset(CityRun& r, const fs::path& dataset) {
+  const fs::path png = r.out / "dataset.png";
   if (!fs::exists(png) || fs::last_write_time(png) < fs::last_write_time(dataset)) {
     if (run_python_script("example_dataset.py", {dataset.string(), "--png", png.string()}))
-      summary["png"] = png.string();
+      r.summary["png"] = png.string();
     else
       spdlog::warn("{}: no picture (python3 with h5py and matplotlib needed)", png.string());
   } else {
-    summary["png"] = png.string();
+    r.summary["png"] = png.string();
   }
-  summary["dataset"] = dataset.string();
-  summary["info"] = generators::dataset_info(dataset.string());
+  r.summary["dataset"] = dataset.string();
+  r.summary["info"] = generators::dataset_info(dataset.string());
   auto problems = generators::validate_dataset(dataset.string());
   for (const auto& p : problems) spdlog::error("{}: {}", dataset.string(), p);
+  return problems;
+}
 
+// The reference model first; the others reuse its transmissions (shared
+// schedule) so that their disagreement with it is measured on the same packets.
+std::vector<std::pair<std::string, SinrArgs>> sinr_runs(const CityRun& r, const fs::path& dataset,
+                                                        const fs::path& sinr_dir) {
+  const SinrSettings& sinr = r.sinr;
+  std::vector<std::pair<std::string, SinrArgs>> runs;
+  for (std::size_t i = 0; i < sinr.models.size(); ++i) {
+    SinrArgs a;
+    a.channels = dataset.string();
+    a.config = r.args.city;
+    a.channel_model = generators::sinr::channel_model_name(sinr.models[i].kind);
+    a.los_from_ray = sinr.models[i].los_from_ray;
+    a.out = (sinr_dir / (sinr.models[i].label() + ".h5")).string();
+    if (i > 0 && sinr.shared_schedule) a.schedule_from = runs.front().second.out;
+    runs.emplace_back(sinr.models[i].label(), a);
+  }
+  if (sinr.isolated_runs)
+    for (const char* only : {"nrv2x-only", "80211p-only"}) {
+      SinrArgs a = runs.front().second;
+      a.rats_enabled = only;
+      a.out = (sinr_dir / (sinr.models.front().label() + "-" + only + ".h5")).string();
+      runs.emplace_back(sinr.models.front().label() + "-" + only, a);
+    }
+  return runs;
+}
+
+// SINR outcomes and their report, when the city asks for them.
+void city_sinr(CityRun& r, const fs::path& dataset, std::vector<std::string>& problems) {
+  const fs::path sinr_dir = r.out / "sinr";
+  const fs::path report_dir = sinr_dir / "report";
+  const std::string sinr_key = sha256_text(r.version + tables_text(r.root, {"sinr"}) + file_hash(dataset.string()));
+  const auto runs = sinr_runs(r, dataset, sinr_dir);
+  // Up to date only while every outcome file is there too, not just the report.
+  const bool outcomes_present =
+      std::all_of(runs.begin(), runs.end(), [](const auto& run) { return fs::exists(run.second.out); });
+  if (!r.args.force && outcomes_present && r.stamps.up_to_date("sinr", sinr_key, report_dir / "report.md")) {
+    spdlog::info("[5/{}] sinr: up to date ({})", r.stages, sinr_dir.string());
+  } else {
+    json sinr_summary = json::array();
+    for (std::size_t i = 0; i < runs.size(); ++i) {
+      spdlog::info("[5/{}] sinr: {} ({}/{})", r.stages, runs[i].first, i + 1, runs.size());
+      sinr_summary.push_back(run_sinr_stage(runs[i].second, r.argv));
+    }
+    r.summary["sinr"] = sinr_summary;
+    ReportArgs report;
+    report.out = report_dir.string();
+    std::string labels;
+    for (const auto& [label, a] : runs) {
+      report.sinr.push_back(a.out);
+      labels += (labels.empty() ? "" : ",") + label;
+    }
+    report.labels = labels;
+    run_report_stage(report);
+    r.stamps.mark("sinr", sinr_key);
+  }
+  json files = json::array();
+  for (const auto& [label, a] : runs) {
+    files.push_back(a.out);
+    for (const auto& p : generators::validate_dataset(a.out)) {
+      spdlog::error("{}: {}", a.out, p);
+      problems.push_back(a.out + ": " + p);
+    }
+  }
+  r.summary["sinr_files"] = files;
+  r.summary["sinr_report"] = report_dir.string();
+}
+
+// The ns-3 lookup table, when the city asks for it.
+void city_ns3(CityRun& r, const fs::path& dataset, std::vector<std::string>& problems) {
+  const fs::path table = r.out / "ns3" / "table.h5";
+  const std::string ns3_key = sha256_text(r.version + tables_text(r.root, {"ns3"}) + file_hash(dataset.string()));
+  if (!r.args.force && r.stamps.up_to_date("ns3", ns3_key, table)) {
+    spdlog::info("ns3: up to date ({})", table.string());
+  } else {
+    run_ns3_table_stage({dataset.string(), table.string(), r.args.city}, r.argv);
+    r.stamps.mark("ns3", ns3_key);
+  }
+  for (const auto& p : generators::validate_dataset(table.string())) {
+    spdlog::error("{}: {}", table.string(), p);
+    problems.push_back(table.string() + ": " + p);
+  }
+  r.summary["ns3_table"] = table.string();
+}
+
+}  // namespace
+
+json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
+  CityRun r = start_city_run(args, argv);
+  const fs::path scene_dir = r.out / "scene", vehicles_dir = r.out / "vehicles";
+  city_scene(r, scene_dir);
+  if (args.until == "scene") return r.summary;
+  city_vehicles(r, vehicles_dir);
+  if (args.until == "vehicles") return r.summary;
+  const CityTraffic traffic = city_traffic(r, r.out / "traffic");
+  if (args.until == "traffic") return r.summary;
+  const fs::path dataset = r.out / "dataset.h5";
+  if (!city_sweep(r, traffic, scene_dir, vehicles_dir, dataset)) return r.summary;
+  if (args.until == "sweep") {
+    r.summary["dataset"] = dataset.string();
+    return r.summary;
+  }
+  std::vector<std::string> problems = city_dataset(r, dataset);
   // Radio map ([radiomap]) and the Blender picture: docs/radiomap.md.
   if (load_radiomap_settings(args.city).present)
-    summary["radiomap"] = run_city_radiomap(args.city, out.string(), scene_dir.string(), city.net, args.force, argv);
-
-  // SINR outcomes and their report, when the city asks for them.
-  if (sinr.present && sinr.enabled) {
-    const fs::path sinr_dir = out / "sinr";
-    const fs::path report_dir = sinr_dir / "report";
-    const std::string sinr_key = sha256_text(version + tables_text(root, {"sinr"}) + file_hash(dataset.string()));
-    // The reference model first; the others reuse its transmissions (shared schedule)
-    // so that their disagreement with it is measured on the same packets.
-    std::vector<std::pair<std::string, SinrArgs>> runs;
-    for (std::size_t i = 0; i < sinr.models.size(); ++i) {
-      SinrArgs a;
-      a.channels = dataset.string();
-      a.config = args.city;
-      a.channel_model = generators::sinr::channel_model_name(sinr.models[i].kind);
-      a.los_from_ray = sinr.models[i].los_from_ray;
-      a.out = (sinr_dir / (sinr.models[i].label() + ".h5")).string();
-      if (i > 0 && sinr.shared_schedule) a.schedule_from = runs.front().second.out;
-      runs.emplace_back(sinr.models[i].label(), a);
-    }
-    if (sinr.isolated_runs)
-      for (const char* only : {"nrv2x-only", "80211p-only"}) {
-        SinrArgs a = runs.front().second;
-        a.rats_enabled = only;
-        a.out = (sinr_dir / (sinr.models.front().label() + "-" + only + ".h5")).string();
-        runs.emplace_back(sinr.models.front().label() + "-" + only, a);
-      }
-    // Up to date only while every outcome file is there too, not just the report.
-    const bool outcomes_present =
-        std::all_of(runs.begin(), runs.end(), [](const auto& r) { return fs::exists(r.second.out); });
-    if (!args.force && outcomes_present && stamps.up_to_date("sinr", sinr_key, report_dir / "report.md")) {
-      spdlog::info("[5/{}] sinr: up to date ({})", stages, sinr_dir.string());
-    } else {
-      json sinr_summary = json::array();
-      for (std::size_t i = 0; i < runs.size(); ++i) {
-        spdlog::info("[5/{}] sinr: {} ({}/{})", stages, runs[i].first, i + 1, runs.size());
-        sinr_summary.push_back(run_sinr_stage(runs[i].second, argv));
-      }
-      summary["sinr"] = sinr_summary;
-      ReportArgs r;
-      r.out = report_dir.string();
-      std::string labels;
-      for (const auto& [label, a] : runs) {
-        r.sinr.push_back(a.out);
-        labels += (labels.empty() ? "" : ",") + label;
-      }
-      r.labels = labels;
-      run_report_stage(r);
-      stamps.mark("sinr", sinr_key);
-    }
-    json files = json::array();
-    for (const auto& [label, a] : runs) {
-      files.push_back(a.out);
-      for (const auto& p : generators::validate_dataset(a.out)) {
-        spdlog::error("{}: {}", a.out, p);
-        problems.push_back(a.out + ": " + p);
-      }
-    }
-    summary["sinr_files"] = files;
-    summary["sinr_report"] = report_dir.string();
-  }
-  // The ns-3 lookup table, when the city asks for it.
-  if (ns3.present && ns3.enabled) {
-    const fs::path table = out / "ns3" / "table.h5";
-    const std::string ns3_key = sha256_text(version + tables_text(root, {"ns3"}) + file_hash(dataset.string()));
-    if (!args.force && stamps.up_to_date("ns3", ns3_key, table)) {
-      spdlog::info("ns3: up to date ({})", table.string());
-    } else {
-      run_ns3_table_stage({dataset.string(), table.string(), args.city}, argv);
-      stamps.mark("ns3", ns3_key);
-    }
-    for (const auto& p : generators::validate_dataset(table.string())) {
-      spdlog::error("{}: {}", table.string(), p);
-      problems.push_back(table.string() + ": " + p);
-    }
-    summary["ns3_table"] = table.string();
-  }
-  summary["valid"] = problems.empty();
-  return summary;
+    r.summary["radiomap"] = run_city_radiomap(args.city, r.out.string(), scene_dir.string(), r.city.net, args.force, argv);
+  if (r.sinr.present && r.sinr.enabled) city_sinr(r, dataset, problems);
+  if (r.ns3.present && r.ns3.enabled) city_ns3(r, dataset, problems);
+  r.summary["valid"] = problems.empty();
+  return r.summary;
 }
 
 }  // namespace raysweep::pipeline

@@ -3,8 +3,11 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <functional>
 #include <iostream>
 #include <map>
+#include <memory>
+#include <optional>
 #include <sstream>
 
 #include <tbb/global_control.h>
@@ -54,78 +57,128 @@ std::map<std::string, double> parse_class_mix(const std::string& s) {
   return mix;
 }
 
-}  // namespace
+namespace rp = raysweep::pipeline;
+using Argv = std::vector<std::string>;
 
-int main(int argc, char** argv) {
-  // Logs go to stderr so stdout stays clean for summaries a script may parse.
-  spdlog::set_default_logger(spdlog::stderr_color_mt("raysweep"));
-  spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
-  std::vector<std::string> args(argv, argv + argc);
+// One subcommand: its options, registered on the app, and what runs when it
+// is the one given (returns the exit status). The options live in a
+// shared_ptr the run function holds, so CLI11 can write into them.
+struct Subcommand {
+  CLI::App* app = nullptr;
+  std::function<int(const Argv&)> run;
+};
 
-  CLI::App app{"raysweep: city-scale V2X ray-tracing datasets"};
-  app.set_version_flag("--version", std::string(raysweep::kVersion) + " (" + raysweep::kGitHash + ")");
-  app.require_subcommand(1);
-  bool quiet = false;
-  app.add_flag("-q,--quiet", quiet, "only warnings and errors");
-  int threads = 0;
-  app.add_option("-j,--threads", threads, "worker threads (default: all cores; results do not depend on it)")
-      ->check(CLI::NonNegativeNumber);
-
-  raysweep::pipeline::SceneArgs scene;
-  std::string offset;
-  bool draco = false, no_draco = false;
+Subcommand scene_command(CLI::App& app) {
+  struct Options {
+    rp::SceneArgs scene;
+    std::string offset;
+    bool draco = false, no_draco = false, no_preview = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* sc = app.add_subcommand("scene", "build a 3D radio scene from OSM + SUMO network, or import a Mitsuba scene");
-  sc->add_option("--osm", scene.osm, "OSM extract (.osm, .osm.gz, .osm.bz2, .osm.pbf)");
-  sc->add_option("--net", scene.net, "SUMO network (.net.xml[.gz]): projection and clipping area");
-  sc->add_option("--proj", scene.proj, "explicit PROJ string instead of --net");
-  sc->add_option("--net-offset", offset, "X,Y offset added after projection (with --proj)");
-  sc->add_option("--from-mitsuba", scene.from_mitsuba, "import a Sionna RT / Mitsuba scene.xml");
-  sc->add_option("--out", scene.out, "output scene folder")->required();
-  sc->add_option("--config", scene.config, "TOML config ([scene] table)");
-  sc->add_flag("--draco", draco, "Draco-compress the glTF geometry");
-  sc->add_flag("--no-draco", no_draco, "do not compress (overrides the config)");
-  bool no_preview = false;
-  sc->add_flag("--no-preview", no_preview, "skip preview.png");
+  sc->add_option("--osm", o->scene.osm, "OSM extract (.osm, .osm.gz, .osm.bz2, .osm.pbf)");
+  sc->add_option("--net", o->scene.net, "SUMO network (.net.xml[.gz]): projection and clipping area");
+  sc->add_option("--proj", o->scene.proj, "explicit PROJ string instead of --net");
+  sc->add_option("--net-offset", o->offset, "X,Y offset added after projection (with --proj)");
+  sc->add_option("--from-mitsuba", o->scene.from_mitsuba, "import a Sionna RT / Mitsuba scene.xml");
+  sc->add_option("--out", o->scene.out, "output scene folder")->required();
+  sc->add_option("--config", o->scene.config, "TOML config ([scene] table)");
+  sc->add_flag("--draco", o->draco, "Draco-compress the glTF geometry");
+  sc->add_flag("--no-draco", o->no_draco, "do not compress (overrides the config)");
+  sc->add_flag("--no-preview", o->no_preview, "skip preview.png");
+  return {sc, [o](const Argv& args) {
+            auto& scene = o->scene;
+            scene.net_offset = parse_offset(o->offset);
+            if (o->draco) scene.draco = true;
+            if (o->no_draco) scene.draco = false;
+            scene.preview = !o->no_preview;
+            const auto manifest = rp::run_scene_stage(scene, args);
+            std::cout << scene.out << ": " << manifest["triangle_count"] << " triangles";
+            if (manifest.contains("buildings"))
+              std::cout << ", buildings kept " << manifest["buildings"]["kept"] << " / repaired "
+                        << manifest["buildings"]["repaired"] << " / skipped " << manifest["buildings"]["skipped"];
+            std::cout << "\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::VehiclesArgs vehicles;
-  bool vehicles_no_preview = false;
+Subcommand vehicles_command(CLI::App& app) {
+  struct Options {
+    rp::VehiclesArgs vehicles;
+    bool no_preview = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* vc = app.add_subcommand("vehicles", "build the vehicle library: one GLB per class and LOD + manifest");
-  vc->add_option("--out", vehicles.out, "output library folder")->required();
-  vc->add_option("--model", vehicles.models, "CLASS=FILE: use a glTF/GLB/OBJ/PLY/OFF model for a class");
-  vc->add_option("--model-unit", vehicles.model_units,
+  vc->add_option("--out", o->vehicles.out, "output library folder")->required();
+  vc->add_option("--model", o->vehicles.models, "CLASS=FILE: use a glTF/GLB/OBJ/PLY/OFF model for a class");
+  vc->add_option("--model-unit", o->vehicles.model_units,
                  "[CLASS=]UNIT: a model file's length unit (m, dm, cm, mm, in, ft); glTF is metres, OBJ/PLY/OFF "
                  "are guessed from the size otherwise");
-  vc->add_option("--vtypes", vehicles.vtypes, "SUMO file with <vType> elements: one entry per vType");
-  vc->add_option("--config", vehicles.config, "TOML config ([vehicles] table)");
-  vc->add_flag("--no-preview", vehicles_no_preview, "skip preview.png");
+  vc->add_option("--vtypes", o->vehicles.vtypes, "SUMO file with <vType> elements: one entry per vType");
+  vc->add_option("--config", o->vehicles.config, "TOML config ([vehicles] table)");
+  vc->add_flag("--no-preview", o->no_preview, "skip preview.png");
+  return {vc, [o](const Argv& args) {
+            o->vehicles.preview = !o->no_preview;
+            const auto manifest = rp::run_vehicles_stage(o->vehicles, args);
+            std::cout << o->vehicles.out << ": " << manifest["vehicles"].size() << " vehicle models\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::TraceArgs trace;
+Subcommand trace_command(CLI::App& app) {
+  auto trace = std::make_shared<rp::TraceArgs>();
   auto* tc = app.add_subcommand("trace", "trace one snapshot: every antenna pair's paths, gains and LoS class");
-  tc->add_option("--scene", trace.scene, "scene folder (from `raysweep scene`)")->required();
-  tc->add_option("--vehicles", trace.vehicles, "vehicle library folder (default: built-in parametric models)");
-  tc->add_option("--poses", trace.poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
-  tc->add_option("--nodes", trace.nodes, "bare antennas CSV: id,x,y,z");
-  tc->add_option("--out", trace.out, "output .json")->required();
-  tc->add_option("--config", trace.config, "TOML config ([radio], [tracer], [materials.<name>])");
-  tc->add_option("--lod", trace.lod, "vehicle LOD (default: each library entry's default)");
-  tc->add_option("--exclude-objects", trace.exclude_objects,
+  tc->add_option("--scene", trace->scene, "scene folder (from `raysweep scene`)")->required();
+  tc->add_option("--vehicles", trace->vehicles, "vehicle library folder (default: built-in parametric models)");
+  tc->add_option("--poses", trace->poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
+  tc->add_option("--nodes", trace->nodes, "bare antennas CSV: id,x,y,z");
+  tc->add_option("--out", trace->out, "output .json")->required();
+  tc->add_option("--config", trace->config, "TOML config ([radio], [tracer], [materials.<name>])");
+  tc->add_option("--lod", trace->lod, "vehicle LOD (default: each library entry's default)");
+  tc->add_option("--exclude-objects", trace->exclude_objects,
                  "regex on static object ids to leave out (e.g. '^mesh-car_' for Sionna's placeholder cars)");
-  tc->add_option("--cfr", trace.cfr, "add each pair's frequency response: 80211p or nr:MU:NRB (e.g. nr:2:10)");
+  tc->add_option("--cfr", trace->cfr, "add each pair's frequency response: 80211p or nr:MU:NRB (e.g. nr:2:10)");
+  return {tc, [trace](const Argv& args) {
+            const auto summary = rp::run_trace_stage(*trace, args);
+            std::cout << trace->out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
+                      << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
+                      << " paths\n";
+            return 0;
+          }};
+}
 
-  std::string poses_net, poses_out, poses_mix = "passenger";
-  int poses_count = 10;
-  std::uint64_t poses_seed = 1;
-  double poses_gap = 6.0;
+Subcommand poses_command(CLI::App& app) {
+  struct Options {
+    std::string net, out, mix = "passenger";
+    int count = 10;
+    std::uint64_t seed = 1;
+    double gap = 6.0;
+  };
+  auto o = std::make_shared<Options>();
   auto* pc = app.add_subcommand("poses", "place vehicles along a SUMO network's lanes (a poses CSV for `trace`)");
-  pc->add_option("--net", poses_net, "SUMO network (.net.xml[.gz])")->required();
-  pc->add_option("--count", poses_count, "number of vehicles")->check(CLI::PositiveNumber);
-  pc->add_option("--seed", poses_seed, "random seed (same seed, same poses)");
-  pc->add_option("--classes", poses_mix, "class mix, e.g. passenger:8,truck:1,bus:1");
-  pc->add_option("--min-gap", poses_gap, "spacing that sets the footprint margin (m)");
-  pc->add_option("--out", poses_out, "output CSV")->required();
+  pc->add_option("--net", o->net, "SUMO network (.net.xml[.gz])")->required();
+  pc->add_option("--count", o->count, "number of vehicles")->check(CLI::PositiveNumber);
+  pc->add_option("--seed", o->seed, "random seed (same seed, same poses)");
+  pc->add_option("--classes", o->mix, "class mix, e.g. passenger:8,truck:1,bus:1");
+  pc->add_option("--min-gap", o->gap, "spacing that sets the footprint margin (m)");
+  pc->add_option("--out", o->out, "output CSV")->required();
+  return {pc, [o](const Argv&) {
+            const auto mix = parse_class_mix(o->mix);
+            const auto net = raysweep::meshkit::read_sumo_network(o->net);
+            const auto rows = rp::place_on_lanes(net, o->count, o->seed, mix, o->gap);
+            rp::write_file_atomic(o->out, rp::poses_csv(rows));
+            std::cout << o->out << ": " << rows.size() << " vehicles\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::TrafficArgs traffic;
-  std::string traffic_classes;
+Subcommand traffic_command(CLI::App& app) {
+  struct Options {
+    rp::TrafficArgs traffic;
+    std::string classes;
+  };
+  auto o = std::make_shared<Options>();
+  auto& traffic = o->traffic;
   auto* tf = app.add_subcommand("traffic", "run SUMO (real traffic) into an FCD trace: from a .sumocfg or random trips");
   tf->add_option("--net", traffic.net, "SUMO network (.net.xml[.gz])")->required();
   auto* tf_cfg = tf->add_option("--sumocfg", traffic.sumocfg, "SUMO config with the demand (routes)");
@@ -137,10 +190,24 @@ int main(int argc, char** argv) {
   tf->add_option("--step-length", traffic.step_length_s, "simulation step = FCD sampling (s)");
   tf->add_option("--period", traffic.period_s, "random trips: one trip every PERIOD seconds");
   tf->add_option("--fringe-factor", traffic.fringe_factor, "random trips: weight of trips starting at the fringe");
-  tf->add_option("--classes", traffic_classes, "random trips: class mix, e.g. passenger:8,truck:1,bus:1");
+  tf->add_option("--classes", o->classes, "random trips: class mix, e.g. passenger:8,truck:1,bus:1");
   tf->add_option("--out", traffic.out, "output folder")->required();
+  return {tf, [o](const Argv& args) {
+            if (!o->classes.empty()) o->traffic.classes = parse_class_mix(o->classes);
+            const auto rec = rp::run_traffic_stage(o->traffic, args);
+            std::cout << o->traffic.out << ": " << rec["fcd"].get<std::string>() << " (" << rec["fcd_bytes"]
+                      << " bytes)\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::SweepArgs sweep;
+Subcommand sweep_command(CLI::App& app) {
+  struct Options {
+    rp::SweepArgs sweep;
+    std::string shard;
+  };
+  auto o = std::make_shared<Options>();
+  auto& sweep = o->sweep;
   auto* sw = app.add_subcommand("sweep", "trace an FCD trace frame by frame into an HDF5 channel dataset");
   sw->add_option("--scene", sweep.scene, "scene folder (from `raysweep scene`)")->required();
   sw->add_option("--vehicles", sweep.vehicles, "vehicle library folder (default: built-in parametric models)");
@@ -150,31 +217,100 @@ int main(int argc, char** argv) {
   sw->add_option("--out", sweep.out, "output .h5")->required();
   sw->add_option("--config", sweep.config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
   sw->add_flag("--resume", sweep.resume, "continue an interrupted run (keeps its committed blocks)");
-  std::string sweep_shard;
-  sw->add_option("--shard", sweep_shard, "I/N: trace only blocks b with b mod N = I into a shard file (raysweep merge)");
+  sw->add_option("--shard", o->shard, "I/N: trace only blocks b with b mod N = I into a shard file (raysweep merge)");
+  return {sw, [o](const Argv& args) {
+            auto& sweep = o->sweep;
+            if (!o->shard.empty()) sweep.shard = rp::parse_shard(o->shard);
+            const auto summary = rp::run_sweep_stage(sweep, args);
+            std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"]
+                      << " pair-channels (" << summary["traced_links"] << " traced), " << summary["bytes"]
+                      << " bytes\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::CityRunArgs city;
+// What `raysweep run` prints when the city's stages are done; the exit status.
+int print_city_summary(const rp::CityRunArgs& city, const nlohmann::json& summary) {
+  if (summary.contains("shard")) {
+    std::cout << "shard: " << summary["shard"].get<std::string>() << "\n";
+    return 0;
+  }
+  if (!summary.contains("info")) {
+    std::cout << "stages up to " << city.until << " done in " << summary["out"].get<std::string>() << "\n";
+    return 0;
+  }
+  std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n";
+  if (summary.contains("png")) std::cout << "picture: " << summary["png"].get<std::string>() << "\n";
+  std::cout << raysweep::generators::format_dataset_info(summary["info"])
+            << "read it in Python: PYTHONPATH=python /usr/bin/python3 python/example_dataset.py "
+            << summary["dataset"].get<std::string>() << "\n";
+  if (summary.contains("sinr_report")) {
+    std::cout << "SINR outcomes:";
+    for (const auto& f : summary["sinr_files"]) std::cout << " " << f.get<std::string>();
+    std::cout << "\nSINR report: " << summary["sinr_report"].get<std::string>() << "/report.md (+ PNGs)\n";
+  }
+  if (summary.contains("ns3_table"))
+    std::cout << "ns-3 table: " << summary["ns3_table"].get<std::string>() << " (ns3/README.md)\n";
+  return summary["valid"].get<bool>() ? 0 : 1;
+}
+
+Subcommand run_command(CLI::App& app) {
+  struct Options {
+    rp::CityRunArgs city;
+    std::string shard;
+    bool mpi = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto& city = o->city;
   auto* rc = app.add_subcommand("run", "one city: scene -> vehicles -> traffic -> sweep (skips up-to-date stages)");
   rc->add_option("city", city.city, "city config (e.g. datasets/demo/city.toml)")->required();
   rc->add_option("--out", city.out, "output folder (default: [city] out or out/<name>)");
   rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
   rc->add_flag("--force", city.force, "run every stage even when up to date");
-  std::string run_shard;
-  bool run_mpi = false;
   rc->add_option("--until", city.until, "stop after this stage: scene, vehicles, traffic or sweep");
-  rc->add_option("--shard", run_shard, "I/N: trace shard I of N into <out>/shards/dataset.I-of-N.h5 and stop");
+  rc->add_option("--shard", o->shard, "I/N: trace shard I of N into <out>/shards/dataset.I-of-N.h5 and stop");
   rc->add_flag("--merge", city.merge, "merge <out>/shards/ into <out>/dataset.h5, then run the later stages");
   rc->add_flag("--virtual", city.virtual_dataset, "with --merge or --mpi: an HDF5 virtual dataset over the shards");
-  rc->add_flag("--mpi", run_mpi, "under mpirun: rank r traces shard r/N, rank 0 merges and runs the later stages");
+  rc->add_flag("--mpi", o->mpi, "under mpirun: rank r traces shard r/N, rank 0 merges and runs the later stages");
+  return {rc, [o](const Argv& args) {
+            auto& city = o->city;
+            if (!o->shard.empty()) city.shard = rp::parse_shard(o->shard);
+            if (city.virtual_dataset && !city.merge && !o->mpi)
+              throw std::invalid_argument("--virtual goes with --merge or --mpi");
+            std::optional<nlohmann::json> result;
+            if (o->mpi) {
+              result = rp::run_city_mpi(city, args);
+              if (!result) return 0;  // ranks other than 0: their shard is done
+            } else {
+              result = rp::run_city(city, args);
+            }
+            return print_city_summary(city, *result);
+          }};
+}
 
-  raysweep::pipeline::MergeArgs merge;
+Subcommand merge_command(CLI::App& app) {
+  auto merge = std::make_shared<rp::MergeArgs>();
   auto* mg = app.add_subcommand("merge", "merge the shard files of a sweep (--shard I/N) into one dataset");
-  mg->add_option("shards", merge.shards, "shard files (every shard of the sweep once)")->required();
-  mg->add_option("--out", merge.out, "output .h5")->required();
-  mg->add_flag("--virtual", merge.virtual_dataset, "an HDF5 virtual dataset over the shard files instead of a copy");
+  mg->add_option("shards", merge->shards, "shard files (every shard of the sweep once)")->required();
+  mg->add_option("--out", merge->out, "output .h5")->required();
+  mg->add_flag("--virtual", merge->virtual_dataset, "an HDF5 virtual dataset over the shard files instead of a copy");
+  return {mg, [merge](const Argv&) {
+            const auto summary = rp::run_merge_stage(*merge);
+            std::cout << merge->out << ": " << summary["frames"] << " frames from " << summary["shards"]
+                      << " shards (" << summary["blocks"] << " blocks)"
+                      << (merge->virtual_dataset ? ", virtual dataset" : "") << ", " << summary["bytes"] << " bytes\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::SinrArgs sinr;
-  std::uint64_t sinr_seed = 0;
+Subcommand sinr_command(CLI::App& app) {
+  struct Options {
+    rp::SinrArgs sinr;
+    std::uint64_t seed = 0;
+    CLI::Option* seed_option = nullptr;
+  };
+  auto o = std::make_shared<Options>();
+  auto& sinr = o->sinr;
   auto* sn = app.add_subcommand("sinr", "SINR outcomes of 802.11p and NR-V2X sharing one channel (HDF5)");
   sn->add_option("--channels", sinr.channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
   sn->add_option("--out", sinr.out, "output SINR .h5")->required();
@@ -185,22 +321,57 @@ int main(int argc, char** argv) {
   sn->add_option("--schedule-from", sinr.schedule_from,
                  "evaluate the transmissions of an earlier SINR file (same packets, another channel model)");
   sn->add_option("--rats-enabled", sinr.rats_enabled, "both | 80211p-only | nrv2x-only (overrides the config)");
-  auto* sn_seed = sn->add_option("--seed", sinr_seed, "random seed (overrides the config)");
+  o->seed_option = sn->add_option("--seed", o->seed, "random seed (overrides the config)");
+  return {sn, [o](const Argv& args) {
+            auto& sinr = o->sinr;
+            if (o->seed_option->count()) sinr.seed = o->seed;
+            const auto summary = rp::run_sinr_stage(sinr, args);
+            std::cout << sinr.out << ": " << summary["transmissions"] << " transmissions, " << summary["receptions"]
+                      << " reception attempts (" << summary["decoded"] << " decoded)";
+            for (const auto& [rat, v] : summary["prr"].items())
+              std::cout << ", PRR " << rat << " " << v["prr"].get<double>();
+            std::cout << "\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::Ns3TableArgs ns3_table;
+Subcommand ns3_table_command(CLI::App& app) {
+  auto ns3 = std::make_shared<rp::Ns3TableArgs>();
   auto* nt = app.add_subcommand("ns3-table", "lookup table for ns-3's Raysweep models (HDF5) from a channel dataset");
-  nt->add_option("--channels", ns3_table.channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
-  nt->add_option("--out", ns3_table.out, "output table .h5")->required();
-  nt->add_option("--config", ns3_table.config, "TOML config ([ns3] table)");
+  nt->add_option("--channels", ns3->channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
+  nt->add_option("--out", ns3->out, "output table .h5")->required();
+  nt->add_option("--config", ns3->config, "TOML config ([ns3] table)");
+  return {nt, [ns3](const Argv& args) {
+            const auto summary = rp::run_ns3_table_stage(*ns3, args);
+            std::cout << ns3->out << ": " << summary["frames"] << " frames, " << summary["pairs"] << " pair-frames, "
+                      << summary["bytes"] << " bytes\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::ReportArgs report;
-  auto* rp = app.add_subcommand("report", "SINR report: PNGs (SINR densities, PRR vs distance) and a comparison table");
-  rp->add_option("--sinr", report.sinr, "SINR files; the first is the reference of the disagreement ratios")
+Subcommand report_command(CLI::App& app) {
+  auto report = std::make_shared<rp::ReportArgs>();
+  auto* rp_app =
+      app.add_subcommand("report", "SINR report: PNGs (SINR densities, PRR vs distance) and a comparison table");
+  rp_app->add_option("--sinr", report->sinr, "SINR files; the first is the reference of the disagreement ratios")
       ->required();
-  rp->add_option("--out", report.out, "output folder")->required();
-  rp->add_option("--labels", report.labels, "comma-separated labels (default: the channel models)");
+  rp_app->add_option("--out", report->out, "output folder")->required();
+  rp_app->add_option("--labels", report->labels, "comma-separated labels (default: the channel models)");
+  return {rp_app, [report](const Argv&) {
+            const auto r = rp::run_report_stage(*report);
+            std::cout << r["table"].get<std::string>();
+            for (const auto& png : r["pngs"]) std::cout << "picture: " << png.get<std::string>() << "\n";
+            return 0;
+          }};
+}
 
-  raysweep::pipeline::TradeoffArgs tradeoff;
+Subcommand tradeoff_command(CLI::App& app) {
+  struct Options {
+    rp::TradeoffArgs tradeoff;
+    bool no_chart = false;
+  };
+  auto o = std::make_shared<Options>();
+  auto& tradeoff = o->tradeoff;
   auto* to = app.add_subcommand("tradeoff",
                                 "tracer accuracy against cost: a grid of settings vs a high-effort reference "
                                 "(CSV, JSON, PNG with the Pareto front)");
@@ -228,206 +399,131 @@ int main(int argc, char** argv) {
                  "suggest the cheapest setting within this 95th-percentile gain error (dB)")
       ->capture_default_str();
   to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
-  bool tradeoff_no_chart = false;
-  to->add_flag("--no-chart", tradeoff_no_chart, "skip tradeoff.png");
+  to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
+  return {to, [o](const Argv& args) {
+            o->tradeoff.chart = !o->no_chart;
+            const auto r = rp::run_tradeoff_stage(o->tradeoff, args);
+            std::cout << r["table"].get<std::string>();
+            std::cout << "tradeoff: " << r["csv"].get<std::string>() << ", " << r["json"].get<std::string>();
+            if (r.contains("png")) std::cout << "\npicture: " << r["png"].get<std::string>();
+            std::cout << "\nsuggested (cheapest with p95 gain error <= " << r["target_p95_db"].get<double>()
+                      << " dB and LoS agreement >= 99%): "
+                      << (r["suggested"].is_null() ? std::string("none") : r["suggested"].get<std::string>()) << "\n";
+            return 0;
+          }};
+}
 
-  // Radio maps (OpenVDB) and Blender pictures: docs/radiomap.md.
-  raysweep::pipeline::RadioMapArgs radiomap;
+// Radio maps (OpenVDB) and Blender pictures: docs/radiomap.md.
+Subcommand radiomap_command(CLI::App& app) {
+  auto radiomap = std::make_shared<rp::RadioMapArgs>();
   auto* rm = app.add_subcommand("radiomap", "path gain from transmitters at every street voxel (OpenVDB)");
-  rm->add_option("--scene", radiomap.scene, "scene folder (from `raysweep scene`)")->required();
-  rm->add_option("--vehicles", radiomap.vehicles, "vehicle library folder (default: built-in parametric models)");
-  rm->add_option("--poses", radiomap.poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
-  rm->add_option("--net", radiomap.net, "SUMO network for region \"streets\" (default: the scene's)");
-  rm->add_option("--tx", radiomap.tx, "transmitter ID,X,Y,Z[,POWER_DBM] (repeatable)");
-  rm->add_option("--out", radiomap.out, "output .vdb")->required();
-  rm->add_option("--config", radiomap.config, "TOML config ([radiomap], [radio], [tracer], [materials.<name>])");
-  rm->add_option("--png", radiomap.png, "horizontal slice at antenna height (.png)");
-  rm->add_option("--check", radiomap.check, "trace N voxels with the per-point tracer and report the agreement")
+  rm->add_option("--scene", radiomap->scene, "scene folder (from `raysweep scene`)")->required();
+  rm->add_option("--vehicles", radiomap->vehicles, "vehicle library folder (default: built-in parametric models)");
+  rm->add_option("--poses", radiomap->poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
+  rm->add_option("--net", radiomap->net, "SUMO network for region \"streets\" (default: the scene's)");
+  rm->add_option("--tx", radiomap->tx, "transmitter ID,X,Y,Z[,POWER_DBM] (repeatable)");
+  rm->add_option("--out", radiomap->out, "output .vdb")->required();
+  rm->add_option("--config", radiomap->config, "TOML config ([radiomap], [radio], [tracer], [materials.<name>])");
+  rm->add_option("--png", radiomap->png, "horizontal slice at antenna height (.png)");
+  rm->add_option("--check", radiomap->check, "trace N voxels with the per-point tracer and report the agreement")
       ->check(CLI::NonNegativeNumber);
-  raysweep::pipeline::RenderArgs render;
+  return {rm, [radiomap](const Argv& args) {
+            const auto r = rp::run_radiomap_stage(*radiomap, args);
+            std::cout << radiomap->out << ": " << r["voxels"] << " voxels (" << r["region"].get<std::string>()
+                      << "), " << r["tx"].size() << " transmitter(s) in " << r["solve_s"].get<double>() << " s\n";
+            if (!r["check"].is_null())
+              std::cout << "vs trace at " << r["check"]["voxels"] << " voxels: |diff| median "
+                        << r["check"]["median_abs_db"].get<double>() << " dB, p90 "
+                        << r["check"]["p90_abs_db"].get<double>() << " dB\n";
+            if (r.contains("png")) std::cout << "picture: " << r["png"].get<std::string>() << "\n";
+            return 0;
+          }};
+}
+
+Subcommand render_command(CLI::App& app) {
+  auto render = std::make_shared<rp::RenderArgs>();
   auto* rn = app.add_subcommand("render", "render the scene, vehicles, paths and a radio map with Blender (PNG)");
-  rn->add_option("--scene", render.scene, "scene folder (from `raysweep scene`)")->required();
-  rn->add_option("--vehicles", render.vehicles, "vehicle library folder (default: built-in parametric models)");
-  rn->add_option("--poses", render.poses, "vehicle poses CSV");
-  rn->add_option("--paths", render.paths, "paths to draw: a `raysweep trace` JSON");
-  rn->add_option("--radiomap", render.radiomap, "radio map to draw (.vdb from `raysweep radiomap`)");
-  rn->add_option("--out", render.out, "output .png")->required();
-  rn->add_option("--camera", render.camera, "top | oblique | X,Y,Z:TX,TY,TZ")->capture_default_str();
-  rn->add_option("--size", render.size, "W,H in pixels")->capture_default_str();
-  rn->add_option("--samples", render.samples, "Cycles samples per pixel")->check(CLI::PositiveNumber)
+  rn->add_option("--scene", render->scene, "scene folder (from `raysweep scene`)")->required();
+  rn->add_option("--vehicles", render->vehicles, "vehicle library folder (default: built-in parametric models)");
+  rn->add_option("--poses", render->poses, "vehicle poses CSV");
+  rn->add_option("--paths", render->paths, "paths to draw: a `raysweep trace` JSON");
+  rn->add_option("--radiomap", render->radiomap, "radio map to draw (.vdb from `raysweep radiomap`)");
+  rn->add_option("--out", render->out, "output .png")->required();
+  rn->add_option("--camera", render->camera, "top | oblique | X,Y,Z:TX,TY,TZ")->capture_default_str();
+  rn->add_option("--size", render->size, "W,H in pixels")->capture_default_str();
+  rn->add_option("--samples", render->samples, "Cycles samples per pixel")->check(CLI::PositiveNumber)
       ->capture_default_str();
+  return {rn, [render](const Argv& args) {
+            const auto r = rp::run_render_stage(*render, args);
+            std::cout << render->out << ": rendered in " << r["seconds"].get<double>() << " s\n";
+            return 0;
+          }};
+}
 
-  // The declared schema of city.toml (pipeline/config_tables.cpp).
-  std::string config_file;
-  bool config_docs = false;
+// The declared schema of city.toml (pipeline/config_tables.cpp).
+Subcommand config_command(CLI::App& app) {
+  struct Options {
+    std::string file;
+    bool docs = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* cf = app.add_subcommand("config", "check a city/stage config and print its effective settings (JSON)");
-  cf->add_option("file", config_file, "city.toml or stage config (none: the defaults)");
-  cf->add_flag("--docs", config_docs, "print the schema as Markdown (docs/config.md)");
+  cf->add_option("file", o->file, "city.toml or stage config (none: the defaults)");
+  cf->add_flag("--docs", o->docs, "print the schema as Markdown (docs/config.md)");
+  return {cf, [o](const Argv&) {
+            if (o->docs) std::cout << rp::config_docs();
+            else std::cout << rp::effective_config(o->file).dump(2) << "\n";
+            return 0;
+          }};
+}
 
-  std::string check_file;
+Subcommand validate_command(CLI::App& app) {
+  auto file = std::make_shared<std::string>();
   auto* vd = app.add_subcommand("validate", "check an HDF5 dataset against the schema (schemas/)");
-  vd->add_option("file", check_file, "dataset .h5")->required();
-  std::string info_file;
-  bool info_json = false;
+  vd->add_option("file", *file, "dataset .h5")->required();
+  return {vd, [file](const Argv&) {
+            const std::string& check_file = *file;
+            const auto problems = raysweep::generators::validate_dataset(check_file);
+            for (const auto& p : problems) std::cout << check_file << ": " << p << "\n";
+            if (!problems.empty()) {
+              std::cout << check_file << ": INVALID (" << problems.size() << " problems)\n";
+              return 1;
+            }
+            const auto info = raysweep::generators::dataset_info(check_file);
+            std::cout << check_file << ": valid (" << info.value("format", std::string()) << " schema "
+                      << info.value("schema_version", std::string()) << ")\n";
+            return 0;
+          }};
+}
+
+Subcommand info_command(CLI::App& app) {
+  struct Options {
+    std::string file;
+    bool json = false;
+  };
+  auto o = std::make_shared<Options>();
   auto* inf = app.add_subcommand("info", "summarise an HDF5 dataset");
-  inf->add_option("file", info_file, "dataset .h5")->required();
-  inf->add_flag("--json", info_json, "print the summary as JSON");
+  inf->add_option("file", o->file, "dataset .h5")->required();
+  inf->add_flag("--json", o->json, "print the summary as JSON");
+  return {inf, [o](const Argv&) {
+            const auto info = raysweep::generators::dataset_info(o->file);
+            if (o->json) std::cout << info.dump(1) << "\n";
+            else std::cout << raysweep::generators::format_dataset_info(info);
+            return 0;
+          }};
+}
 
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    // --help and --version exit 0; usage errors (unknown option, bad value) 2, like any bad input.
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  if (quiet) spdlog::set_level(spdlog::level::warn);
-  std::optional<tbb::global_control> thread_limit;
-  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+// In the order `raysweep --help` lists them.
+using MakeSubcommand = Subcommand (*)(CLI::App&);
+constexpr MakeSubcommand kSubcommands[] = {
+    scene_command,  vehicles_command, trace_command,     poses_command,  traffic_command,  sweep_command,
+    run_command,    merge_command,    sinr_command,      ns3_table_command, report_command, tradeoff_command,
+    radiomap_command, render_command, config_command,    validate_command, info_command};
 
+// Bad input (files, configs, arguments) exits 2, any other failure 1.
+int run_reporting_errors(const Subcommand& command, const Argv& args) {
   try {
-    if (sc->parsed()) {
-      scene.net_offset = parse_offset(offset);
-      if (draco) scene.draco = true;
-      if (no_draco) scene.draco = false;
-      scene.preview = !no_preview;
-      const auto manifest = raysweep::pipeline::run_scene_stage(scene, args);
-      std::cout << scene.out << ": " << manifest["triangle_count"] << " triangles";
-      if (manifest.contains("buildings"))
-        std::cout << ", buildings kept " << manifest["buildings"]["kept"] << " / repaired "
-                  << manifest["buildings"]["repaired"] << " / skipped " << manifest["buildings"]["skipped"];
-      std::cout << "\n";
-    }
-    if (vc->parsed()) {
-      vehicles.preview = !vehicles_no_preview;
-      const auto manifest = raysweep::pipeline::run_vehicles_stage(vehicles, args);
-      std::cout << vehicles.out << ": " << manifest["vehicles"].size() << " vehicle models\n";
-    }
-    if (tc->parsed()) {
-      const auto summary = raysweep::pipeline::run_trace_stage(trace, args);
-      std::cout << trace.out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
-                << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
-                << " paths\n";
-    }
-    if (rm->parsed()) {
-      const auto r = raysweep::pipeline::run_radiomap_stage(radiomap, args);
-      std::cout << radiomap.out << ": " << r["voxels"] << " voxels (" << r["region"].get<std::string>() << "), "
-                << r["tx"].size() << " transmitter(s) in " << r["solve_s"].get<double>() << " s\n";
-      if (!r["check"].is_null())
-        std::cout << "vs trace at " << r["check"]["voxels"] << " voxels: |diff| median "
-                  << r["check"]["median_abs_db"].get<double>() << " dB, p90 " << r["check"]["p90_abs_db"].get<double>()
-                  << " dB\n";
-      if (r.contains("png")) std::cout << "picture: " << r["png"].get<std::string>() << "\n";
-    }
-    if (rn->parsed()) {
-      const auto r = raysweep::pipeline::run_render_stage(render, args);
-      std::cout << render.out << ": rendered in " << r["seconds"].get<double>() << " s\n";
-    }
-    if (tf->parsed()) {
-      if (!traffic_classes.empty()) traffic.classes = parse_class_mix(traffic_classes);
-      const auto rec = raysweep::pipeline::run_traffic_stage(traffic, args);
-      std::cout << traffic.out << ": " << rec["fcd"].get<std::string>() << " (" << rec["fcd_bytes"] << " bytes)\n";
-    }
-    if (sw->parsed()) {
-      if (!sweep_shard.empty()) sweep.shard = raysweep::pipeline::parse_shard(sweep_shard);
-      const auto summary = raysweep::pipeline::run_sweep_stage(sweep, args);
-      std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"] << " pair-channels ("
-                << summary["traced_links"] << " traced), " << summary["bytes"] << " bytes\n";
-    }
-    if (sn->parsed()) {
-      if (sn_seed->count()) sinr.seed = sinr_seed;
-      const auto summary = raysweep::pipeline::run_sinr_stage(sinr, args);
-      std::cout << sinr.out << ": " << summary["transmissions"] << " transmissions, " << summary["receptions"]
-                << " reception attempts (" << summary["decoded"] << " decoded)";
-      for (const auto& [rat, v] : summary["prr"].items())
-        std::cout << ", PRR " << rat << " " << v["prr"].get<double>();
-      std::cout << "\n";
-    }
-    if (nt->parsed()) {
-      const auto summary = raysweep::pipeline::run_ns3_table_stage(ns3_table, args);
-      std::cout << ns3_table.out << ": " << summary["frames"] << " frames, " << summary["pairs"] << " pair-frames, "
-                << summary["bytes"] << " bytes\n";
-    }
-    if (rp->parsed()) {
-      const auto r = raysweep::pipeline::run_report_stage(report);
-      std::cout << r["table"].get<std::string>();
-      for (const auto& png : r["pngs"]) std::cout << "picture: " << png.get<std::string>() << "\n";
-    }
-    if (mg->parsed()) {
-      const auto summary = raysweep::pipeline::run_merge_stage(merge);
-      std::cout << merge.out << ": " << summary["frames"] << " frames from " << summary["shards"] << " shards ("
-                << summary["blocks"] << " blocks)" << (merge.virtual_dataset ? ", virtual dataset" : "") << ", "
-                << summary["bytes"] << " bytes\n";
-    }
-    if (rc->parsed()) {
-      if (!run_shard.empty()) city.shard = raysweep::pipeline::parse_shard(run_shard);
-      if (city.virtual_dataset && !city.merge && !run_mpi)
-        throw std::invalid_argument("--virtual goes with --merge or --mpi");
-      std::optional<nlohmann::json> result;
-      if (run_mpi) {
-        result = raysweep::pipeline::run_city_mpi(city, args);
-        if (!result) return 0;  // ranks other than 0: their shard is done
-      } else {
-        result = raysweep::pipeline::run_city(city, args);
-      }
-      const auto& summary = *result;
-      if (summary.contains("shard")) {
-        std::cout << "shard: " << summary["shard"].get<std::string>() << "\n";
-        return 0;
-      }
-      if (!summary.contains("info")) {
-        std::cout << "stages up to " << city.until << " done in " << summary["out"].get<std::string>() << "\n";
-        return 0;
-      }
-      std::cout << "dataset: " << summary["dataset"].get<std::string>() << "\n";
-      if (summary.contains("png")) std::cout << "picture: " << summary["png"].get<std::string>() << "\n";
-      std::cout << raysweep::generators::format_dataset_info(summary["info"])
-                << "read it in Python: PYTHONPATH=python /usr/bin/python3 python/example_dataset.py "
-                << summary["dataset"].get<std::string>() << "\n";
-      if (summary.contains("sinr_report")) {
-        std::cout << "SINR outcomes:";
-        for (const auto& f : summary["sinr_files"]) std::cout << " " << f.get<std::string>();
-        std::cout << "\nSINR report: " << summary["sinr_report"].get<std::string>() << "/report.md (+ PNGs)\n";
-      }
-      if (summary.contains("ns3_table"))
-        std::cout << "ns-3 table: " << summary["ns3_table"].get<std::string>() << " (ns3/README.md)\n";
-      if (!summary["valid"].get<bool>()) return 1;
-    }
-    if (to->parsed()) {
-      tradeoff.chart = !tradeoff_no_chart;
-      const auto r = raysweep::pipeline::run_tradeoff_stage(tradeoff, args);
-      std::cout << r["table"].get<std::string>();
-      std::cout << "tradeoff: " << r["csv"].get<std::string>() << ", " << r["json"].get<std::string>();
-      if (r.contains("png")) std::cout << "\npicture: " << r["png"].get<std::string>();
-      std::cout << "\nsuggested (cheapest with p95 gain error <= " << r["target_p95_db"].get<double>()
-                << " dB and LoS agreement >= 99%): "
-                << (r["suggested"].is_null() ? std::string("none") : r["suggested"].get<std::string>()) << "\n";
-    }
-    if (vd->parsed()) {
-      const auto problems = raysweep::generators::validate_dataset(check_file);
-      for (const auto& p : problems) std::cout << check_file << ": " << p << "\n";
-      if (!problems.empty()) {
-        std::cout << check_file << ": INVALID (" << problems.size() << " problems)\n";
-        return 1;
-      }
-      const auto info = raysweep::generators::dataset_info(check_file);
-      std::cout << check_file << ": valid (" << info.value("format", std::string()) << " schema "
-                << info.value("schema_version", std::string()) << ")\n";
-    }
-    if (cf->parsed()) {
-      if (config_docs) std::cout << raysweep::pipeline::config_docs();
-      else std::cout << raysweep::pipeline::effective_config(config_file).dump(2) << "\n";
-    }
-    if (inf->parsed()) {
-      const auto info = raysweep::generators::dataset_info(info_file);
-      if (info_json) std::cout << info.dump(1) << "\n";
-      else std::cout << raysweep::generators::format_dataset_info(info);
-    }
-    if (pc->parsed()) {
-      const auto mix = parse_class_mix(poses_mix);
-      const auto net = raysweep::meshkit::read_sumo_network(poses_net);
-      const auto rows = raysweep::pipeline::place_on_lanes(net, poses_count, poses_seed, mix, poses_gap);
-      raysweep::pipeline::write_file_atomic(poses_out, raysweep::pipeline::poses_csv(rows));
-      std::cout << poses_out << ": " << rows.size() << " vehicles\n";
-    }
+    return command.run(args);
   } catch (const raysweep::meshkit::InputError& e) {
     spdlog::error("{}", e.what());
     return 2;
@@ -441,5 +537,38 @@ int main(int argc, char** argv) {
     spdlog::error("{}", e.what());
     return 1;
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Logs go to stderr so stdout stays clean for summaries a script may parse.
+  spdlog::set_default_logger(spdlog::stderr_color_mt("raysweep"));
+  spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
+  const Argv args(argv, argv + argc);
+
+  CLI::App app{"raysweep: city-scale V2X ray-tracing datasets"};
+  app.set_version_flag("--version", std::string(raysweep::kVersion) + " (" + raysweep::kGitHash + ")");
+  app.require_subcommand(1);
+  bool quiet = false;
+  app.add_flag("-q,--quiet", quiet, "only warnings and errors");
+  int threads = 0;
+  app.add_option("-j,--threads", threads, "worker threads (default: all cores; results do not depend on it)")
+      ->check(CLI::NonNegativeNumber);
+  std::vector<Subcommand> commands;
+  for (const MakeSubcommand make : kSubcommands) commands.push_back(make(app));
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // --help and --version exit 0; usage errors (unknown option, bad value) 2, like any bad input.
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (quiet) spdlog::set_level(spdlog::level::warn);
+  std::optional<tbb::global_control> thread_limit;
+  if (threads > 0) thread_limit.emplace(tbb::global_control::max_allowed_parallelism, threads);
+
+  for (const auto& command : commands)
+    if (command.app->parsed()) return run_reporting_errors(command, args);
   return 0;
 }

@@ -90,13 +90,7 @@ void check_same_run(const Shard& ref, const Shard& s) {
   if (ref.reader->objects() != s.reader->objects()) differs("the object tables differ");
 }
 
-}  // namespace
-
-json run_merge_stage(const MergeArgs& args) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
-  if (args.shards.empty()) throw std::invalid_argument("merge: no shard files given");
-
+std::vector<Shard> open_shards(const MergeArgs& args) {
   std::vector<Shard> shards;
   for (const auto& f : args.shards) {
     if (!fs::exists(f)) throw std::invalid_argument(f + ": shard file not found");
@@ -112,8 +106,12 @@ json run_merge_stage(const MergeArgs& args) {
     s.rec = ShardRecord::from_json(json::parse(s.reader->header().shard), f);
     shards.push_back(std::move(s));
   }
+  return shards;
+}
 
-  // Coverage: every shard index of 0..N-1 exactly once, so every block once.
+// The shards by index, checked for coverage: every shard index of 0..N-1
+// exactly once, so every block once, each with the frames of its blocks.
+std::map<std::uint32_t, const Shard*> check_coverage(const std::vector<Shard>& shards) {
   std::map<std::uint32_t, const Shard*> by_index;
   const Shard& first = shards.front();
   for (const auto& s : shards) {
@@ -143,12 +141,16 @@ json run_merge_stage(const MergeArgs& args) {
       throw std::invalid_argument(s->file + ": holds " + std::to_string(s->reader->frame_count()) +
                                   " frames, its blocks have " + std::to_string(frames));
   }
+  return by_index;
+}
 
-  // Where each block's frames are: its shard, the first frame in that shard.
-  struct Where {
-    const Shard* shard;
-    std::uint64_t first;
-  };
+// Where each block's frames are: its shard, the first frame in that shard.
+struct Where {
+  const Shard* shard;
+  std::uint64_t first;
+};
+
+std::vector<Where> block_locations(const Shard& first, const std::map<std::uint32_t, const Shard*>& by_index) {
   std::vector<Where> blocks(first.rec.blocks_total);
   for (const auto& [i, s] : by_index) {
     std::uint64_t f = 0;
@@ -157,25 +159,18 @@ json run_merge_stage(const MergeArgs& args) {
       f += s->rec.frames_of(b);
     }
   }
+  return blocks;
+}
 
-  generators::DatasetHeader header = first.reader->header();
-  header.shard.clear();
-  header.provenance = provenance_for(header.provenance, first.rec.out, args.out);
-  const fs::path out(args.out);
-  if (!out.parent_path().empty()) fs::create_directories(out.parent_path());
-  const fs::path tmp = out.string() + ".tmp";
+// The merged file at `path`: a copy of the frames, or an HDF5 virtual
+// dataset mapping them from the shards. Returns the frame count.
+std::uint64_t write_merged(const fs::path& path, const MergeArgs& args, const generators::DatasetHeader& header,
+                           const Shard& first, const std::vector<Where>& blocks) {
   std::uint64_t frames = 0;
-  struct RemoveUnlessRenamed {
-    fs::path p;
-    ~RemoveUnlessRenamed() {
-      std::error_code ec;
-      fs::remove(p, ec);
-    }
-  } guard{tmp};
   if (args.virtual_dataset) {
     // Mappings name the shards relative to the merged file's folder, so the
     // folder with its shards can move as a whole.
-    const fs::path base = fs::absolute(out).parent_path();
+    const fs::path base = fs::absolute(fs::path(args.out)).parent_path();
     std::vector<generators::VirtualPiece> pieces;
     for (std::uint64_t b = 0; b < blocks.size(); ++b) {
       const auto& w = blocks[b];
@@ -183,9 +178,9 @@ json run_merge_stage(const MergeArgs& args) {
       pieces.push_back({w.shard->file, fs::relative(fs::absolute(w.shard->file), base).string(), w.first, nf});
       frames += nf;
     }
-    generators::write_virtual_dataset(tmp, header, first.reader->nodes(), first.reader->objects(), pieces);
+    generators::write_virtual_dataset(path, header, first.reader->nodes(), first.reader->objects(), pieces);
   } else {
-    generators::DatasetWriter writer(tmp, header);
+    generators::DatasetWriter writer(path, header);
     for (std::uint64_t b = 0; b < blocks.size(); ++b) {
       const std::uint64_t nf = first.rec.frames_of(b);
       for (const auto& f : blocks[b].shard->reader->frames(blocks[b].first, nf)) writer.append(f);
@@ -193,9 +188,11 @@ json run_merge_stage(const MergeArgs& args) {
     }
     writer.finish(first.reader->nodes(), first.reader->objects());
   }
-  fs::rename(tmp, out);
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return frames;
+}
 
+// <out>.merge.json: the shards merged (with their hashes) and the result's hash.
+void write_merge_record(const MergeArgs& args, const std::map<std::uint32_t, const Shard*>& by_index) {
   json record = {{"merged", args.out}, {"virtual", args.virtual_dataset}, {"shards", json::array()}};
   for (const auto& [i, s] : by_index)
     record["shards"].push_back({{"file", s->file},
@@ -204,7 +201,29 @@ json run_merge_stage(const MergeArgs& args) {
                                 {"count", s->rec.spec.count},
                                 {"blocks", s->rec.blocks}});
   record["sha256"] = sha256_file(args.out);
-  write_file_atomic(out.string() + ".merge.json", record.dump(1) + "\n");
+  write_file_atomic(args.out + ".merge.json", record.dump(1) + "\n");
+}
+
+}  // namespace
+
+json run_merge_stage(const MergeArgs& args) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
+  if (args.shards.empty()) throw std::invalid_argument("merge: no shard files given");
+  const std::vector<Shard> shards = open_shards(args);
+  const auto by_index = check_coverage(shards);
+  const Shard& first = shards.front();
+  const std::vector<Where> blocks = block_locations(first, by_index);
+
+  generators::DatasetHeader header = first.reader->header();
+  header.shard.clear();
+  header.provenance = provenance_for(header.provenance, first.rec.out, args.out);
+  const fs::path out(args.out);
+  StagedFile staged(out);
+  const std::uint64_t frames = write_merged(staged.path(), args, header, first, blocks);
+  staged.commit();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  write_merge_record(args, by_index);
 
   spdlog::info("merged {} shards ({} blocks, {} frames) into {}{} in {:.2f} s", shards.size(), blocks.size(), frames,
                args.out, args.virtual_dataset ? " (virtual dataset)" : "", wall);

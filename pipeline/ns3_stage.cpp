@@ -8,6 +8,7 @@
 #include "generators/ns3_table.hpp"
 #include "pipeline/config_tables.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
@@ -37,17 +38,10 @@ json run_ns3_table_stage(const Ns3TableArgs& args, const std::vector<std::string
 
   spdlog::info("ns3-table: {} -> {}", args.channels, args.out);
   const fs::path out(args.out);
-  if (out.has_parent_path()) fs::create_directories(out.parent_path());
-  const fs::path tmp = out.string() + ".tmp";
-  generators::Ns3TableBuildStats stats;
-  try {
-    stats = generators::build_ns3_table(args.channels, tmp, header, settings.subcarriers_per_band);
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
-  }
-  fs::rename(tmp, out);
+  StagedFile staged(out);
+  const generators::Ns3TableBuildStats stats =
+      generators::build_ns3_table(args.channels, staged.path(), header, settings.subcarriers_per_band);
+  staged.commit();
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   const auto bytes = fs::file_size(out);
   json summary = {{"out", args.out},

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -129,14 +130,12 @@ RadioMapSettings load_radiomap_settings(const std::string& path) {
   return s;
 }
 
-json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>& argv) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (fs::path(args.out).extension() != ".vdb") throw std::invalid_argument(args.out + ": output must end in .vdb");
-  if (!args.png.empty() && fs::path(args.png).extension() != ".png")
-    throw std::invalid_argument(args.png + ": the slice picture must end in .png");
-  const TraceSettings trace = load_trace_config(args.config);
+namespace {
+
+// The settings with the command line's transmitters, checked; each
+// transmitter's power defaults to the radio's.
+RadioMapSettings checked_settings(const RadioMapArgs& args, const TraceSettings& trace, const std::string& cfg_name) {
   RadioMapSettings s = load_radiomap_settings(args.config);
-  const std::string cfg_name = args.config.empty() ? std::string("radiomap settings") : args.config;
   for (const auto& spec : args.tx) s.tx.push_back(parse_radiomap_tx(spec, "--tx"));
   // Each key's own range is the schema's (config_tables.cpp); this one spans two keys.
   if (s.z_min_m > s.z_max_m)
@@ -148,101 +147,146 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     if (!ids.insert(t.id).second) throw std::invalid_argument("radiomap: transmitter id '" + t.id + "' twice");
     if (!t.power_given) t.power_dbm = trace.radio.tx_power_dbm;
   }
-  const long layers = static_cast<long>(std::floor((s.z_max_m - s.z_min_m) / s.voxel_m + 1e-9)) + 1;
-  if (layers > 100000) throw std::invalid_argument(cfg_name + ": radiomap: more than 100000 voxel layers");
+  return s;
+}
 
-  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
-  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
-  tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
-  std::vector<InputFile> inputs{{"scene", scene_file.string()}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
-  if (!args.poses.empty()) {
-    VehicleLibrary library(args.vehicles, args.lod);
-    inputs.push_back({"poses", args.poses});
-    try {
-      place_vehicles(scene, library, read_poses_csv(args.poses));
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(args.poses + ": " + e.what());
-    }
-    for (const auto& f : library.files()) inputs.push_back({"vehicle_model", f});
+// The vehicles of --poses placed in the scene (their files recorded as inputs).
+void place_poses(const RadioMapArgs& args, tracer::TraceScene& scene, std::vector<InputFile>& inputs) {
+  VehicleLibrary library(args.vehicles, args.lod);
+  inputs.push_back({"poses", args.poses});
+  try {
+    place_vehicles(scene, library, read_poses_csv(args.poses));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(args.poses + ": " + e.what());
   }
-  for (const auto& t : s.tx)
-    if (generators::inside_static(scene, t.position))
-      throw std::invalid_argument("radiomap: transmitter " + t.id + " at (" + std::to_string(t.position[0]) + ", " +
-                                  std::to_string(t.position[1]) + ", " + std::to_string(t.position[2]) +
-                                  ") is inside a building of " + scene_file.string());
+  for (const auto& f : library.files()) inputs.push_back({"vehicle_model", f});
+}
 
-  // The region's voxel columns.
-  std::string net_path = args.net.empty() ? scene_network(args.scene) : args.net;
-  std::string region = s.region.empty() ? (net_path.empty() ? "all" : "streets") : s.region;
-  if (region == "streets" && net_path.empty())
-    throw std::invalid_argument("radiomap: region \"streets\" needs a SUMO network (--net, or a scene built with one)");
+// The region ("streets" or "all") and its voxel columns.
+struct MapRegion {
+  std::string name;
   std::vector<std::array<std::int32_t, 2>> columns;
+};
+
+MapRegion map_region(const RadioMapArgs& args, const RadioMapSettings& s, const tracer::TraceScene& scene,
+                     std::vector<InputFile>& inputs) {
+  const std::string net_path = args.net.empty() ? scene_network(args.scene) : args.net;
+  MapRegion r;
+  r.name = s.region.empty() ? (net_path.empty() ? "all" : "streets") : s.region;
+  if (r.name == "streets" && net_path.empty())
+    throw std::invalid_argument("radiomap: region \"streets\" needs a SUMO network (--net, or a scene built with one)");
   const double v = s.voxel_m;
-  if (region == "streets") {
+  if (r.name == "streets") {
     const auto net = meshkit::read_sumo_network(net_path);
     inputs.push_back({"net", net_path});
-    columns = street_columns(net, v, s.street_margin_m);
+    r.columns = street_columns(net, v, s.street_margin_m);
   } else {
     const auto b = scene.static_bounds();
     for (auto i = static_cast<std::int32_t>(std::ceil(b.min[0] / v)); i * v <= b.max[0]; ++i)
-      for (auto j = static_cast<std::int32_t>(std::ceil(b.min[1] / v)); j * v <= b.max[1]; ++j) columns.push_back({i, j});
+      for (auto j = static_cast<std::int32_t>(std::ceil(b.min[1] / v)); j * v <= b.max[1]; ++j)
+        r.columns.push_back({i, j});
   }
-  // Voxels of the open air: centres inside a building are never active.
+  return r;
+}
+
+// The voxels of the open air and their centres: centres inside a building are never active.
+struct OpenVoxels {
+  std::vector<Voxel> voxels;
+  std::vector<Vec3> points;
+};
+
+OpenVoxels open_voxels(const MapRegion& region, long layers, const RadioMapSettings& s,
+                       const tracer::TraceScene& scene) {
+  const double v = s.voxel_m;
   std::vector<Voxel> candidates;
-  for (const auto& c : columns)
+  for (const auto& c : region.columns)
     for (std::int32_t k = 0; k < layers; ++k) candidates.push_back({c[0], c[1], k});
   auto centre = [&](const Voxel& x) { return Vec3{x[0] * v, x[1] * v, s.z_min_m + x[2] * v}; };
   std::vector<unsigned char> open(candidates.size(), 0);
   tbb::parallel_for(std::size_t{0}, candidates.size(),
                     [&](std::size_t n) { open[n] = !generators::inside_static(scene, centre(candidates[n])); });
-  std::vector<Voxel> voxels;
-  std::vector<Vec3> points;
+  OpenVoxels o;
   for (std::size_t n = 0; n < candidates.size(); ++n)
     if (open[n]) {
-      voxels.push_back(candidates[n]);
-      points.push_back(centre(candidates[n]));
+      o.voxels.push_back(candidates[n]);
+      o.points.push_back(centre(candidates[n]));
     }
-  if (voxels.empty()) throw std::invalid_argument("radiomap: the region holds no voxel in the open air");
-  spdlog::info("radio map: {} voxels ({} region, {} m, {} layers from z = {} m), {} transmitter(s)", voxels.size(),
-               region, v, layers, s.z_min_m, s.tx.size());
+  return o;
+}
 
-  // Diffuse scattering: the voxels where it is gathered exactly (one per
-  // block and layer, nearest the block's centre), and each voxel's.
-  // Hybrid gathers by rays here: the transmitter's rays reach first-order scattering only.
-  const bool diffuse = trace.tracer.diffuse && trace.tracer.diffuse_integration != tracer::DiffuseIntegration::tiles;
-  std::vector<std::uint32_t> diffuse_at(voxels.size());
-  std::vector<std::uint32_t> diffuse_samples;
-  if (diffuse) {
-    const double b = s.diffuse_block_m > 0 ? s.diffuse_block_m : v;
-    std::map<std::array<long, 3>, std::pair<double, std::uint32_t>> nearest;  // block -> (distance, voxel)
-    auto block_of = [&](const Voxel& x) {
-      return std::array<long, 3>{static_cast<long>(std::floor(x[0] * v / b)), static_cast<long>(std::floor(x[1] * v / b)),
-                                 static_cast<long>(x[2])};
-    };
-    for (std::size_t n = 0; n < voxels.size(); ++n) {
-      const auto key = block_of(voxels[n]);
-      const double dx = voxels[n][0] * v - (key[0] + 0.5) * b, dy = voxels[n][1] * v - (key[1] + 0.5) * b;
-      const double d = s.diffuse_block_m > 0 ? std::hypot(dx, dy) : 0.0;
-      auto [it, fresh] = nearest.try_emplace(key, d, static_cast<std::uint32_t>(n));
-      if (!fresh && d < it->second.first) it->second = {d, static_cast<std::uint32_t>(n)};
-    }
-    std::map<std::uint32_t, std::uint32_t> sample_index;  // voxel -> row in diffuse_samples
-    for (const auto& [key, dn] : nearest) sample_index.emplace(dn.second, 0);
-    for (auto& [n, row] : sample_index) {
-      row = static_cast<std::uint32_t>(diffuse_samples.size());
-      diffuse_samples.push_back(n);
-    }
-    for (std::size_t n = 0; n < voxels.size(); ++n) diffuse_at[n] = sample_index.at(nearest.at(block_of(voxels[n])).second);
-    spdlog::info("radio map: diffuse scattering gathered at {} voxels (blocks of {} m)", diffuse_samples.size(), b);
+// Diffuse scattering: the voxels where it is gathered exactly (one per
+// block and layer, nearest the block's centre), and each voxel's row among them.
+struct DiffuseSamples {
+  std::vector<std::uint32_t> at;       // per voxel: row in `samples`
+  std::vector<std::uint32_t> samples;  // voxel indices
+};
+
+DiffuseSamples diffuse_samples(const std::vector<Voxel>& voxels, const RadioMapSettings& s) {
+  const double v = s.voxel_m;
+  const double b = s.diffuse_block_m > 0 ? s.diffuse_block_m : v;
+  DiffuseSamples d;
+  d.at.resize(voxels.size());
+  std::map<std::array<long, 3>, std::pair<double, std::uint32_t>> nearest;  // block -> (distance, voxel)
+  auto block_of = [&](const Voxel& x) {
+    return std::array<long, 3>{static_cast<long>(std::floor(x[0] * v / b)), static_cast<long>(std::floor(x[1] * v / b)),
+                               static_cast<long>(x[2])};
+  };
+  for (std::size_t n = 0; n < voxels.size(); ++n) {
+    const auto key = block_of(voxels[n]);
+    const double dx = voxels[n][0] * v - (key[0] + 0.5) * b, dy = voxels[n][1] * v - (key[1] + 0.5) * b;
+    const double dist = s.diffuse_block_m > 0 ? std::hypot(dx, dy) : 0.0;
+    auto [it, fresh] = nearest.try_emplace(key, dist, static_cast<std::uint32_t>(n));
+    if (!fresh && dist < it->second.first) it->second = {dist, static_cast<std::uint32_t>(n)};
   }
+  std::map<std::uint32_t, std::uint32_t> sample_index;  // voxel -> row in samples
+  for (const auto& [key, dn] : nearest) sample_index.emplace(dn.second, 0);
+  for (auto& [n, row] : sample_index) {
+    row = static_cast<std::uint32_t>(d.samples.size());
+    d.samples.push_back(n);
+  }
+  for (std::size_t n = 0; n < voxels.size(); ++n) d.at[n] = sample_index.at(nearest.at(block_of(voxels[n])).second);
+  spdlog::info("radio map: diffuse scattering gathered at {} voxels (blocks of {} m)", d.samples.size(), b);
+  return d;
+}
 
-  // Per transmitter: path gain and LoS class at every voxel centre.
+// What the transmitters give: two grids each (path gain, LoS class), the
+// strongest received power and its transmitter per voxel, and the timings.
+struct TxMaps {
   std::vector<VdbGrid> grids;
-  std::vector<float> rss(voxels.size(), kNoPathDb);
-  std::vector<std::int32_t> best(voxels.size(), -1);
+  std::vector<float> rss;
+  std::vector<std::int32_t> best;
   json per_tx = json::array();
   double solve_s = 0;
+};
+
+// The path gain at every voxel centre from `tx`, diffuse scattering added
+// where `diffuse` has samples.
+std::vector<generators::RadioMapPointResult> solve_tx(const tracer::TraceScene& scene, const tracer::Node& node,
+                                                const OpenVoxels& o, const DiffuseSamples* diffuse,
+                                                const TraceSettings& trace, generators::RadioMapSolveStats& st) {
+  auto res = generators::solve_points(scene, node, o.points, trace.tracer, trace.radio, &st);
+  if (!diffuse) return res;
+  std::vector<tracer::Node> nodes{node};
+  std::vector<std::uint32_t> receivers;
+  for (auto n : diffuse->samples) {
+    tracer::Node p;
+    p.id = "v" + std::to_string(n);
+    p.position = o.points[n];
+    receivers.push_back(static_cast<std::uint32_t>(nodes.size()));
+    nodes.push_back(p);
+  }
+  const auto power = tracer::diffuse_power(scene, nodes, 0, receivers, trace.tracer, trace.radio);
+  for (std::size_t n = 0; n < o.voxels.size(); ++n) res[n].gain += power[diffuse->at[n]];
+  return res;
+}
+
+// Per transmitter: path gain and LoS class at every voxel centre.
+TxMaps solve_transmitters(const tracer::TraceScene& scene, const RadioMapSettings& s, const OpenVoxels& o,
+                          const DiffuseSamples* diffuse, const TraceSettings& trace) {
+  const std::size_t nv = o.voxels.size();
+  TxMaps m;
+  m.rss.assign(nv, kNoPathDb);
+  m.best.assign(nv, -1);
   for (std::size_t t = 0; t < s.tx.size(); ++t) {
     const auto& tx = s.tx[t];
     tracer::Node node;
@@ -250,33 +294,20 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     node.position = tx.position;
     const auto t1 = std::chrono::steady_clock::now();
     generators::RadioMapSolveStats st;
-    auto res = generators::solve_points(scene, node, points, trace.tracer, trace.radio, &st);
-    if (diffuse) {
-      std::vector<tracer::Node> nodes{node};
-      std::vector<std::uint32_t> receivers;
-      for (auto n : diffuse_samples) {
-        tracer::Node p;
-        p.id = "v" + std::to_string(n);
-        p.position = points[n];
-        receivers.push_back(static_cast<std::uint32_t>(nodes.size()));
-        nodes.push_back(p);
-      }
-      const auto power = tracer::diffuse_power(scene, nodes, 0, receivers, trace.tracer, trace.radio);
-      for (std::size_t n = 0; n < voxels.size(); ++n) res[n].gain += power[diffuse_at[n]];
-    }
+    const auto res = solve_tx(scene, node, o, diffuse, trace, st);
     const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
-    solve_s += sec;
+    m.solve_s += sec;
     VdbGrid pg{"path_gain_db." + tx.id, true, {}, {}, kNoPathDb, 0, json::object()};
     VdbGrid lc{"los_class." + tx.id, false, {}, {}, 0, -1, json::object()};
-    pg.f.resize(voxels.size());
-    lc.i.resize(voxels.size());
-    for (std::size_t n = 0; n < voxels.size(); ++n) {
+    pg.f.resize(nv);
+    lc.i.resize(nv);
+    for (std::size_t n = 0; n < nv; ++n) {
       pg.f[n] = res[n].gain > 0 ? static_cast<float>(tracer::to_db(res[n].gain)) : kNoPathDb;
       lc.i[n] = static_cast<std::int32_t>(res[n].los);
       const float p = pg.f[n] > kNoPathDb ? static_cast<float>(tx.power_dbm) + pg.f[n] : kNoPathDb;
-      if (p > rss[n]) {
-        rss[n] = p;
-        best[n] = static_cast<std::int32_t>(t);
+      if (p > m.rss[n]) {
+        m.rss[n] = p;
+        m.best[n] = static_cast<std::int32_t>(t);
       }
     }
     const json tx_meta = {{"tx_id", tx.id}, {"tx_position_m", tx.position}, {"tx_power_dbm", tx.power_dbm}};
@@ -285,72 +316,78 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
     pg.meta["no_path_db"] = kNoPathDb;
     lc.meta = tx_meta;
     lc.meta["quantity"] = "geometric LoS class of the direct segment: 0 LOS, 1 NLOSV, 2 NLOS";
-    grids.push_back(std::move(pg));
-    grids.push_back(std::move(lc));
-    per_tx.push_back({{"id", tx.id}, {"seconds", sec}, {"voxels_per_s", voxels.size() / std::max(sec, 1e-9)},
-                      {"paths", st.paths}, {"rays", st.rays}, {"out_of_range", st.out_of_range}});
-    spdlog::info("radio map: {} in {:.2f} s ({:.0f} voxels/s, {} paths)", tx.id, sec, voxels.size() / std::max(sec, 1e-9),
+    m.grids.push_back(std::move(pg));
+    m.grids.push_back(std::move(lc));
+    m.per_tx.push_back({{"id", tx.id}, {"seconds", sec}, {"voxels_per_s", nv / std::max(sec, 1e-9)},
+                        {"paths", st.paths}, {"rays", st.rays}, {"out_of_range", st.out_of_range}});
+    spdlog::info("radio map: {} in {:.2f} s ({:.0f} voxels/s, {} paths)", tx.id, sec, nv / std::max(sec, 1e-9),
                  st.paths);
   }
-  // Display grid: received power of the best server mapped to [0, 1] from
-  // the sensitivity to the map's peak.
+  return m;
+}
+
+// The strongest received power, its transmitter, and the display grid: that
+// power mapped to [0, 1] from the sensitivity to the map's peak.
+void add_best_server_grids(TxMaps& m, double floor_dbm) {
   float peak = kNoPathDb;
-  for (float p : rss) peak = std::max(peak, p);
-  const double floor_dbm = trace.radio.sensitivity_dbm;
+  for (float p : m.rss) peak = std::max(peak, p);
   VdbGrid density{"density", true, {}, {}, 0, 0, json::object()};
-  density.f.resize(voxels.size());
-  for (std::size_t n = 0; n < voxels.size(); ++n)
-    density.f[n] = peak > floor_dbm ? static_cast<float>(std::clamp((rss[n] - floor_dbm) / (peak - floor_dbm), 0.0, 1.0))
-                                    : 0.0f;
+  density.f.resize(m.rss.size());
+  for (std::size_t n = 0; n < m.rss.size(); ++n)
+    density.f[n] = peak > floor_dbm
+                       ? static_cast<float>(std::clamp((m.rss[n] - floor_dbm) / (peak - floor_dbm), 0.0, 1.0))
+                       : 0.0f;
   density.meta = {{"quantity", "rss_dbm mapped linearly to [0, 1] from sensitivity_dbm to the map's peak"},
                   {"floor_dbm", floor_dbm}, {"peak_dbm", peak}};
-  grids.push_back(VdbGrid{"rss_dbm", true, rss, {}, kNoPathDb, 0,
-                          {{"quantity", "received power of the strongest transmitter: tx_power_dbm + path_gain_db (dBm)"},
-                           {"no_path_db", kNoPathDb}}});
-  grids.push_back(VdbGrid{"best_server", false, {}, best, 0, -1,
-                          {{"quantity", "index into the file's tx list of the strongest transmitter (-1: none)"}}});
-  grids.push_back(std::move(density));
+  m.grids.push_back(VdbGrid{"rss_dbm", true, m.rss, {}, kNoPathDb, 0,
+                            {{"quantity", "received power of the strongest transmitter: tx_power_dbm + path_gain_db (dBm)"},
+                             {"no_path_db", kNoPathDb}}});
+  m.grids.push_back(VdbGrid{"best_server", false, {}, m.best, 0, -1,
+                            {{"quantity", "index into the file's tx list of the strongest transmitter (-1: none)"}}});
+  m.grids.push_back(std::move(density));
+}
 
-  // Agreement with the per-point tracer (`raysweep trace`) at sampled voxels.
-  json check = nullptr;
-  if (args.check > 0) {
-    const auto& tx = s.tx.front();
-    std::vector<tracer::Node> nodes(1);
-    nodes[0].id = tx.id;
-    nodes[0].position = tx.position;
-    std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
-    std::vector<std::size_t> which;
-    const std::size_t step = std::max<std::size_t>(1, voxels.size() / static_cast<std::size_t>(args.check));
-    for (std::size_t n = step / 2; n < voxels.size() && which.size() < static_cast<std::size_t>(args.check); n += step) {
-      tracer::Node p;
-      p.id = "v" + std::to_string(n);
-      p.position = points[n];
-      nodes.push_back(p);
-      which.push_back(n);
-      pairs.emplace_back(0, static_cast<std::uint32_t>(nodes.size() - 1));
-    }
-    const auto snap = tracer::trace_pairs(scene, nodes, pairs, trace.tracer, trace.radio);
-    std::vector<double> diff;
-    std::size_t los_agree = 0;
-    for (std::size_t q = 0; q < which.size(); ++q) {
-      const double g = snap.pairs[q].stats.gain_incoherent;
-      if (static_cast<std::int32_t>(snap.pairs[q].los_class) == grids[1].i[which[q]]) ++los_agree;
-      if (!(g > 0) || tx.power_dbm + tracer::to_db(g) < floor_dbm) continue;
-      diff.push_back(std::fabs(tracer::to_db(g) - grids[0].f[which[q]]));
-    }
-    check = {{"tx", tx.id}, {"voxels", which.size()}, {"above_sensitivity", diff.size()},
-             {"median_abs_db", percentile(diff, 0.5)}, {"p90_abs_db", percentile(diff, 0.9)},
-             {"max_abs_db", diff.empty() ? 0.0 : *std::max_element(diff.begin(), diff.end())},
-             {"los_class_agreement", which.empty() ? 0.0 : double(los_agree) / which.size()}};
-    spdlog::info("radio map vs trace at {} voxels ({} above sensitivity): |diff| median {:.3f} dB, p90 {:.3f} dB",
-                 which.size(), diff.size(), check["median_abs_db"].get<double>(), check["p90_abs_db"].get<double>());
+// Agreement with the per-point tracer (`raysweep trace`) at `count` sampled
+// voxels, for the first transmitter (its grids are grids[0] and grids[1]).
+json check_vs_trace(int count, const RadioMapTx& tx, const OpenVoxels& o, const std::vector<VdbGrid>& grids,
+                    const tracer::TraceScene& scene, const TraceSettings& trace) {
+  std::vector<tracer::Node> nodes(1);
+  nodes[0].id = tx.id;
+  nodes[0].position = tx.position;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;
+  std::vector<std::size_t> which;
+  const std::size_t nv = o.voxels.size();
+  const std::size_t step = std::max<std::size_t>(1, nv / static_cast<std::size_t>(count));
+  for (std::size_t n = step / 2; n < nv && which.size() < static_cast<std::size_t>(count); n += step) {
+    tracer::Node p;
+    p.id = "v" + std::to_string(n);
+    p.position = o.points[n];
+    nodes.push_back(p);
+    which.push_back(n);
+    pairs.emplace_back(0, static_cast<std::uint32_t>(nodes.size() - 1));
   }
+  const auto snap = tracer::trace_pairs(scene, nodes, pairs, trace.tracer, trace.radio);
+  const double floor_dbm = trace.radio.sensitivity_dbm;
+  std::vector<double> diff;
+  std::size_t los_agree = 0;
+  for (std::size_t q = 0; q < which.size(); ++q) {
+    const double g = snap.pairs[q].stats.gain_incoherent;
+    if (static_cast<std::int32_t>(snap.pairs[q].los_class) == grids[1].i[which[q]]) ++los_agree;
+    if (!(g > 0) || tx.power_dbm + tracer::to_db(g) < floor_dbm) continue;
+    diff.push_back(std::fabs(tracer::to_db(g) - grids[0].f[which[q]]));
+  }
+  json check = {{"tx", tx.id}, {"voxels", which.size()}, {"above_sensitivity", diff.size()},
+                {"median_abs_db", percentile(diff, 0.5)}, {"p90_abs_db", percentile(diff, 0.9)},
+                {"max_abs_db", diff.empty() ? 0.0 : *std::max_element(diff.begin(), diff.end())},
+                {"los_class_agreement", which.empty() ? 0.0 : double(los_agree) / which.size()}};
+  spdlog::info("radio map vs trace at {} voxels ({} above sensitivity): |diff| median {:.3f} dB, p90 {:.3f} dB",
+               which.size(), diff.size(), check["median_abs_db"].get<double>(), check["p90_abs_db"].get<double>());
+  return check;
+}
 
-  json config = trace.to_json();
-  config["radiomap"] = s.to_json();
-  config["radiomap"]["region"] = region;
-  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
-  const json prov = provenance("radiomap", inputs, config, argv);
+// The file's metadata: grid geometry, transmitters, method, config and provenance.
+json vdb_meta(const TraceSettings& trace, const RadioMapSettings& s, const std::string& region, std::size_t voxels,
+              const json& config, const json& prov, const json& check) {
   json txs = json::array();
   for (const auto& t : s.tx) txs.push_back({{"id", t.id}, {"position_m", t.position}, {"power_dbm", t.power_dbm}});
   json meta = {{"format", "raysweep radio map"},
@@ -358,11 +395,11 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
                {"carrier_hz", trace.radio.frequency_hz},
                {"bandwidth_hz", trace.radio.bandwidth_hz},
                {"sensitivity_dbm", trace.radio.sensitivity_dbm},
-               {"voxel_m", v},
+               {"voxel_m", s.voxel_m},
                {"z_min_m", s.z_min_m},
                {"z_max_m", s.z_max_m},
                {"region", region},
-               {"voxels", voxels.size()},
+               {"voxels", voxels},
                {"tx", txs.dump()},
                {"semantics", "voxel (i,j,k) holds the value at transform.indexToWorld(i,j,k) = (i v, j v, z_min + k v), "
                              "its centre (a point value, not a voxel average)"},
@@ -372,17 +409,63 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
                {"tracer_config", config.dump()},
                {"provenance", prov.dump()}};
   if (!check.is_null()) meta["check_vs_trace"] = check.dump();
-  if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
-  write_radiomap_vdb(args.out, v, s.z_min_m, voxels, grids, meta);
+  return meta;
+}
 
-  json summary = {{"out", args.out}, {"voxels", voxels.size()}, {"region", region}, {"tx", per_tx},
-                  {"solve_s", solve_s}, {"check", check}};
+}  // namespace
+
+json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (fs::path(args.out).extension() != ".vdb") throw std::invalid_argument(args.out + ": output must end in .vdb");
+  if (!args.png.empty() && fs::path(args.png).extension() != ".png")
+    throw std::invalid_argument(args.png + ": the slice picture must end in .png");
+  const TraceSettings trace = load_trace_config(args.config);
+  const std::string cfg_name = args.config.empty() ? std::string("radiomap settings") : args.config;
+  const RadioMapSettings s = checked_settings(args, trace, cfg_name);
+  const long layers = static_cast<long>(std::floor((s.z_max_m - s.z_min_m) / s.voxel_m + 1e-9)) + 1;
+  if (layers > 100000) throw std::invalid_argument(cfg_name + ": radiomap: more than 100000 voxel layers");
+
+  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
+  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
+  tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
+  std::vector<InputFile> inputs{{"scene", scene_file.string()}};
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!args.poses.empty()) place_poses(args, scene, inputs);
+  for (const auto& t : s.tx)
+    if (generators::inside_static(scene, t.position))
+      throw std::invalid_argument("radiomap: transmitter " + t.id + " at (" + std::to_string(t.position[0]) + ", " +
+                                  std::to_string(t.position[1]) + ", " + std::to_string(t.position[2]) +
+                                  ") is inside a building of " + scene_file.string());
+
+  const MapRegion region = map_region(args, s, scene, inputs);
+  const OpenVoxels o = open_voxels(region, layers, s, scene);
+  if (o.voxels.empty()) throw std::invalid_argument("radiomap: the region holds no voxel in the open air");
+  spdlog::info("radio map: {} voxels ({} region, {} m, {} layers from z = {} m), {} transmitter(s)", o.voxels.size(),
+               region.name, s.voxel_m, layers, s.z_min_m, s.tx.size());
+  // Hybrid gathers by rays here: the transmitter's rays reach first-order scattering only.
+  const bool diffuse = trace.tracer.diffuse && trace.tracer.diffuse_integration != tracer::DiffuseIntegration::tiles;
+  const std::optional<DiffuseSamples> samples =
+      diffuse ? std::optional<DiffuseSamples>(diffuse_samples(o.voxels, s)) : std::nullopt;
+  TxMaps maps = solve_transmitters(scene, s, o, samples ? &*samples : nullptr, trace);
+  add_best_server_grids(maps, trace.radio.sensitivity_dbm);
+  const json check = args.check > 0 ? check_vs_trace(args.check, s.tx.front(), o, maps.grids, scene, trace) : json();
+
+  json config = trace.to_json();
+  config["radiomap"] = s.to_json();
+  config["radiomap"]["region"] = region.name;
+  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
+  const json prov = provenance("radiomap", inputs, config, argv);
+  write_radiomap_vdb(args.out, s.voxel_m, s.z_min_m, o.voxels, maps.grids,
+                     vdb_meta(trace, s, region.name, o.voxels.size(), config, prov, check));
+
+  json summary = {{"out", args.out}, {"voxels", o.voxels.size()}, {"region", region.name}, {"tx", maps.per_tx},
+                  {"solve_s", maps.solve_s}, {"check", check}};
   if (!args.png.empty()) {
     const fs::path png(args.png);
-    const fs::path tmp = png.parent_path() / (png.stem().string() + ".tmp.png");
-    if (!png.parent_path().empty()) fs::create_directories(png.parent_path());
-    if (run_python_script("radiomap_slice.py", {args.out, args.scene, tmp.string()})) {
-      fs::rename(tmp, png);
+    // The slice script infers the picture's format from the extension.
+    StagedFile staged(png, png.parent_path() / (png.stem().string() + ".tmp.png"));
+    if (run_python_script("radiomap_slice.py", {args.out, args.scene, staged.path().string()})) {
+      staged.commit();
       summary["png"] = png.string();
     }
   }

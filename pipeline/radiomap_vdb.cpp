@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "pipeline/staged_output.hpp"
+
 namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
@@ -76,16 +78,15 @@ void write_radiomap_vdb(const std::string& path, double voxel_m, double z0_m,
   }
   openvdb::MetaMap file_meta;
   for (const auto& [k, v] : meta.items()) put_meta(file_meta, k, v);
-  const fs::path final_path(path);
-  const fs::path tmp = final_path.parent_path() / (final_path.filename().string() + ".tmp");
+  StagedFile staged{fs::path(path)};
   {
-    openvdb::io::File file(tmp.string());
+    openvdb::io::File file(staged.path().string());
     file.setCompression(openvdb::io::COMPRESS_BLOSC | openvdb::io::COMPRESS_ACTIVE_MASK);
     if (!file.hasBloscCompression()) file.setCompression(openvdb::io::COMPRESS_ZIP | openvdb::io::COMPRESS_ACTIVE_MASK);
     file.write(out, file_meta);
     file.close();
   }
-  fs::rename(tmp, final_path);
+  staged.commit();
 }
 
 VdbSummary read_radiomap_vdb(const std::string& path) {

@@ -12,6 +12,7 @@
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_model.hpp"
 #include "pipeline/preview.hpp"
+#include "pipeline/staged_output.hpp"
 #include "pipeline/trace_inputs.hpp"
 
 namespace raysweep::pipeline {
@@ -94,7 +95,9 @@ json run_render_stage(const RenderArgs& args, const std::vector<std::string>& /*
   const fs::path work = out.parent_path() / (out.stem().string() + ".render-tmp");
   fs::remove_all(work);
   fs::create_directories(work);
-  std::vector<std::string> py{"--scene", scene_file.string(), "--out", (work / "render.png").string(), "--camera",
+  // Blender renders into the scratch folder, which a failed render leaves behind with its blender.log.
+  StagedFile staged(out, work / "render.png");
+  std::vector<std::string> py{"--scene", scene_file.string(), "--out", staged.path().string(), "--camera",
                               args.camera, "--size", args.size, "--samples", std::to_string(args.samples),
                               "--max-pairs", std::to_string(args.max_pairs)};
   if (!args.poses.empty()) {
@@ -118,7 +121,7 @@ json run_render_stage(const RenderArgs& args, const std::vector<std::string>& /*
   cmd += " > " + quote((work / "blender.log").string()) + " 2>&1";
   spdlog::info("render: blender ({}x{}, {} samples, camera {})", w, h, args.samples, args.camera);
   const int rc = std::system(cmd.c_str());
-  if (rc != 0 || !fs::exists(work / "render.png")) {
+  if (rc != 0 || !fs::exists(staged.path())) {
     std::string tail;
     if (FILE* f = std::fopen((work / "blender.log").c_str(), "r")) {
       char buf[4096];
@@ -129,7 +132,7 @@ json run_render_stage(const RenderArgs& args, const std::vector<std::string>& /*
     }
     throw std::runtime_error("render: blender failed (status " + std::to_string(rc) + "):\n" + tail);
   }
-  fs::rename(work / "render.png", out);
+  staged.commit();
   fs::remove_all(work);
   const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   spdlog::info("render: {} in {:.1f} s", out.string(), sec);

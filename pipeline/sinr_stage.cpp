@@ -16,6 +16,7 @@
 #include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
@@ -57,44 +58,40 @@ SinrSettings load_sinr_settings(const std::string& path) {
   return s;
 }
 
-json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) {
-  const auto t_start = std::chrono::steady_clock::now();
-  SinrSettings settings = load_sinr_settings(args.config);
-  const SinrModel model = parse_sinr_model(args.channel_model + (args.los_from_ray ? "+los-from-ray" : ""));
-  gs::SinrConfig cfg = settings.config;
-  if (args.seed) cfg.seed = *args.seed;
-  if (!args.rats_enabled.empty()) cfg.rats.enabled = args.rats_enabled;
-  settings.config = cfg;
-  cfg.check();
-  settings.stochastic.seed = cfg.seed;
-  settings.stochastic.los_from_ray = model.los_from_ray;
+namespace {
 
-  spdlog::info("sinr: loading {}", args.channels);
-  const gs::ChannelTrace trace = gs::ChannelTrace::load(args.channels);
-  cfg.wifi.carrier_hz = trace.carrier_hz();
-  cfg.nr.carrier_hz = trace.carrier_hz();
-  const auto channel = gs::make_channel_model(model.kind, trace, settings.stochastic);
-
+// Each node's RAT and, with --schedule-from, the transmissions to evaluate
+// again (empty: the run schedules its own).
+struct SinrSchedule {
   std::vector<gs::Rat> rats;
   std::vector<gs::Transmission> reused;
-  if (!args.schedule_from.empty()) {
-    auto sched = gs::read_sinr_schedule(args.schedule_from);
-    if (sched.nodes.size() != trace.nodes().size())
-      throw meshkit::InputError(args.schedule_from, "/nodes",
-                                std::to_string(sched.nodes.size()) + " nodes but " + args.channels + " has " +
-                                    std::to_string(trace.nodes().size()) + " (a schedule from another dataset?)");
-    for (std::size_t n = 0; n < sched.nodes.size(); ++n) {
-      if (sched.nodes[n].id != trace.nodes()[n].id)
-        throw meshkit::InputError(args.schedule_from, "/nodes/id",
-                                  "node " + std::to_string(n) + " is '" + sched.nodes[n].id + "' but '" +
-                                      trace.nodes()[n].id + "' in " + args.channels);
-      rats.push_back(sched.nodes[n].rat);
-    }
-    reused = std::move(sched.transmissions);
-  } else {
-    rats = gs::assign_rats(trace, cfg.rats, cfg.seed);
-  }
+};
 
+SinrSchedule sinr_schedule(const SinrArgs& args, const gs::ChannelTrace& trace, const gs::SinrConfig& cfg) {
+  SinrSchedule s;
+  if (args.schedule_from.empty()) {
+    s.rats = gs::assign_rats(trace, cfg.rats, cfg.seed);
+    return s;
+  }
+  auto sched = gs::read_sinr_schedule(args.schedule_from);
+  if (sched.nodes.size() != trace.nodes().size())
+    throw meshkit::InputError(args.schedule_from, "/nodes",
+                              std::to_string(sched.nodes.size()) + " nodes but " + args.channels + " has " +
+                                  std::to_string(trace.nodes().size()) + " (a schedule from another dataset?)");
+  for (std::size_t n = 0; n < sched.nodes.size(); ++n) {
+    if (sched.nodes[n].id != trace.nodes()[n].id)
+      throw meshkit::InputError(args.schedule_from, "/nodes/id",
+                                "node " + std::to_string(n) + " is '" + sched.nodes[n].id + "' but '" +
+                                    trace.nodes()[n].id + "' in " + args.channels);
+    s.rats.push_back(sched.nodes[n].rat);
+  }
+  s.reused = std::move(sched.transmissions);
+  return s;
+}
+
+gs::SinrHeader sinr_header(const SinrArgs& args, const SinrSettings& settings, const SinrModel& model,
+                           const gs::SinrConfig& cfg, const gs::ChannelTrace& trace,
+                           const std::vector<std::string>& argv) {
   json config = settings.to_json();
   config["channel_model"] = model.label();
   std::vector<InputFile> inputs{{"channels", args.channels}};
@@ -112,30 +109,10 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
   header.sensitivity_dbm = cfg.sensitivity_dbm;
   header.gain_threshold_db = cfg.gain_threshold_db;
   std::tie(header.time_start_s, header.time_end_s) = gs::sinr_window(trace, cfg);
+  return header;
+}
 
-  const fs::path out(args.out);
-  if (out.has_parent_path()) fs::create_directories(out.parent_path());
-  const fs::path tmp = out.string() + ".tmp";
-  gs::SinrRunStats stats;
-  try {
-    gs::SinrWriter writer(tmp, header);
-    auto progress_at = std::chrono::steady_clock::now();
-    stats = gs::run_sinr(trace, *channel, cfg, rats, args.schedule_from.empty() ? nullptr : &reused, writer,
-                         [&](const gs::SinrRunProgress& p) {
-                           const auto now = std::chrono::steady_clock::now();
-                           if (now - progress_at < std::chrono::seconds(2)) return;
-                           progress_at = now;
-                           spdlog::info("sinr {}: {}/{} transmissions evaluated ({:.0f}%)", model.label(), p.done,
-                                        p.total, 100.0 * static_cast<double>(p.done) / std::max<double>(1, p.total));
-                         });
-  } catch (...) {
-    std::error_code ec;
-    fs::remove(tmp, ec);
-    throw;
-  }
-  fs::rename(tmp, out);
-
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+json sinr_summary(const SinrArgs& args, const SinrModel& model, const gs::SinrRunStats& stats, double wall) {
   json summary = {{"out", args.out},
                   {"channel_model", model.label()},
                   {"packets", stats.packets},
@@ -149,7 +126,7 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
                   {"time_start_s", stats.time_start_s},
                   {"time_end_s", stats.time_end_s},
                   {"wall_seconds", wall},
-                  {"bytes", fs::file_size(out)}};
+                  {"bytes", fs::file_size(args.out)}};
   json prr = json::object();
   for (const auto& p : stats.prr_rats)
     prr[gs::rat_name(p.rat)] = {{"packets", p.packets}, {"received", p.received},
@@ -162,6 +139,47 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
                model.label(), stats.packets, stats.transmissions, stats.receptions, stats.decoded, prr_text, wall,
                args.out);
   return summary;
+}
+
+}  // namespace
+
+json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) {
+  const auto t_start = std::chrono::steady_clock::now();
+  SinrSettings settings = load_sinr_settings(args.config);
+  const SinrModel model = parse_sinr_model(args.channel_model + (args.los_from_ray ? "+los-from-ray" : ""));
+  gs::SinrConfig cfg = settings.config;
+  if (args.seed) cfg.seed = *args.seed;
+  if (!args.rats_enabled.empty()) cfg.rats.enabled = args.rats_enabled;
+  settings.config = cfg;
+  cfg.check();
+  settings.stochastic.seed = cfg.seed;
+  settings.stochastic.los_from_ray = model.los_from_ray;
+
+  spdlog::info("sinr: loading {}", args.channels);
+  const gs::ChannelTrace trace = gs::ChannelTrace::load(args.channels);
+  cfg.wifi.carrier_hz = trace.carrier_hz();
+  cfg.nr.carrier_hz = trace.carrier_hz();
+  const auto channel = gs::make_channel_model(model.kind, trace, settings.stochastic);
+  const SinrSchedule schedule = sinr_schedule(args, trace, cfg);
+  const gs::SinrHeader header = sinr_header(args, settings, model, cfg, trace, argv);
+
+  StagedFile staged{fs::path(args.out)};
+  gs::SinrRunStats stats;
+  {
+    gs::SinrWriter writer(staged.path(), header);
+    auto progress_at = std::chrono::steady_clock::now();
+    stats = gs::run_sinr(trace, *channel, cfg, schedule.rats, args.schedule_from.empty() ? nullptr : &schedule.reused,
+                         writer, [&](const gs::SinrRunProgress& p) {
+                           const auto now = std::chrono::steady_clock::now();
+                           if (now - progress_at < std::chrono::seconds(2)) return;
+                           progress_at = now;
+                           spdlog::info("sinr {}: {}/{} transmissions evaluated ({:.0f}%)", model.label(), p.done,
+                                        p.total, 100.0 * static_cast<double>(p.done) / std::max<double>(1, p.total));
+                         });
+  }
+  staged.commit();
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return sinr_summary(args, model, stats, wall);
 }
 
 json run_report_stage(const ReportArgs& args) {

@@ -44,6 +44,24 @@ void StagedDirectory::commit() {
   fs::remove_all(old, ec);
 }
 
+StagedFile::StagedFile(fs::path final_path) : StagedFile(final_path, final_path.string() + ".tmp") {}
+
+StagedFile::StagedFile(fs::path final_path, fs::path tmp_path) : final_(std::move(final_path)), tmp_(std::move(tmp_path)) {
+  if (final_.has_parent_path()) fs::create_directories(final_.parent_path());
+}
+
+StagedFile::~StagedFile() {
+  if (!committed_) {
+    std::error_code ec;
+    fs::remove(tmp_, ec);
+  }
+}
+
+void StagedFile::commit() {
+  fs::rename(tmp_, final_);
+  committed_ = true;
+}
+
 void write_file_atomic(const fs::path& path, const std::string& content) {
   if (!path.parent_path().empty()) fs::create_directories(path.parent_path());
   const fs::path tmp = sibling(path, "tmp");

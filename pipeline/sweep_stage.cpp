@@ -135,35 +135,38 @@ std::vector<const FcdVehicle*> SweepSelection::select(const FcdFrame& frame,
   return out;
 }
 
-json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv) {
-  const auto t_start = std::chrono::steady_clock::now();
-  if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
-  const TraceSettings settings = load_trace_config(args.config);
-  const SweepConfig cfg = load_sweep_config(args.config);
-  generators::SweepOptions options = cfg.options;
-  if (!cfg.cfr.empty()) options.cfr = parse_ofdm_grid(cfg.cfr, settings.radio.frequency_hz);
-  if (!fs::exists(args.fcd)) throw std::invalid_argument(args.fcd + ": FCD file not found");
+namespace {
 
-  // Inputs and the run key: a resumed run must continue the same run.
+// The recorded settings and inputs of a sweep, and its run key: a resumed run
+// must continue the same run.
+struct SweepRunId {
+  json config, prov;
+  std::string run_key;
+};
+
+SweepRunId identify_run(const SweepArgs& args, const TraceSettings& settings, const SweepConfig& cfg,
+                        const fs::path& scene_file, const std::vector<std::string>& argv) {
   std::vector<InputFile> inputs;
-  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
-  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
   inputs.push_back({"scene", scene_file.string()});
   inputs.push_back({"fcd", args.fcd});
   for (const auto& v : args.vtypes) inputs.push_back({"vtypes", v});
   if (!args.rsus.empty()) inputs.push_back({"rsus", args.rsus});
   if (!args.config.empty()) inputs.push_back({"config", args.config});
   if (!args.vehicles.empty()) inputs.push_back({"vehicle_manifest", (fs::path(args.vehicles) / "manifest.json").string()});
-  json config = settings.to_json();
-  config["sweep"] = cfg.to_json();
-  config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
-  json prov = provenance("sweep", inputs, config, recorded_command(argv));
-  prov["embree"] = tracer::embree_version();
-  const std::string run_key = json{{"config", config}, {"inputs", prov["inputs"]}, {"version", kVersion}}.dump();
-  auto mine = [&](std::uint64_t block) { return !args.shard || args.shard->owns(block); };
+  SweepRunId id;
+  id.config = settings.to_json();
+  id.config["sweep"] = cfg.to_json();
+  id.config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
+  id.prov = provenance("sweep", inputs, id.config, recorded_command(argv));
+  id.prov["embree"] = tracer::embree_version();
+  id.run_key = json{{"config", id.config}, {"inputs", id.prov["inputs"]}, {"version", kVersion}}.dump();
+  return id;
+}
 
+// The parts folder holds the committed blocks of a run: kept with --resume
+// (when it is the same run), discarded otherwise.
+void prepare_parts(const SweepArgs& args, const fs::path& parts, const std::string& run_key) {
   const fs::path out(args.out);
-  const fs::path parts = out.string() + ".parts";
   if (fs::exists(parts)) {
     std::ifstream in(parts / "run.json");
     json run;
@@ -184,184 +187,245 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
   if (!out.parent_path().empty()) fs::create_directories(out.parent_path());
   fs::create_directories(parts);
   write_file_atomic(parts / "run.json", json{{"key", run_key}}.dump() + "\n");
+}
 
-  // Scene, library, types, road-side units.
-  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), cfg.exclude_objects));
-  const auto bounds = scene.static_bounds();
-  VehicleLibrary library(args.vehicles, cfg.lod);
-  VTypeMap vtypes;
-  for (const auto& f : args.vtypes) {
-    if (fs::path(f).extension() == ".sumocfg") vtypes.add_sumocfg(f);
-    else vtypes.add_file(f);
-  }
-  std::vector<generators::NodeInfo> node_table;
-  std::map<std::string, std::uint32_t> node_index;
+// The dataset's nodes: the road-side units first, then each vehicle when it
+// first appears.
+struct NodeTable {
+  std::vector<generators::NodeInfo> nodes;
+  std::map<std::string, std::uint32_t> index;
   std::vector<generators::SweepRsu> rsus;
-  if (!args.rsus.empty()) {
-    for (const auto& r : read_nodes_csv(args.rsus)) {
-      const auto idx = static_cast<std::uint32_t>(node_table.size());
-      node_table.push_back({r.id, generators::NodeKind::rsu, "", "", 0, 0, 0});
-      node_index[r.id] = idx;
+
+  explicit NodeTable(const std::string& rsus_file) {
+    if (rsus_file.empty()) return;
+    for (const auto& r : read_nodes_csv(rsus_file)) {
+      const auto idx = static_cast<std::uint32_t>(nodes.size());
+      nodes.push_back({r.id, generators::NodeKind::rsu, "", "", 0, 0, 0});
+      index[r.id] = idx;
       rsus.push_back({idx, {r.x, r.y, r.z}});
     }
   }
-  // Scene model of each FCD vehicle type (registered when the type first appears).
-  FcdTypeModels type_models(vtypes, library, !args.vehicles.empty(), args.fcd);
-  std::map<std::string, std::uint32_t> scene_models;
-  auto model_for = [&](const FcdVehicle& v) -> const FcdTypeModel* {
-    const FcdTypeModel* tm = type_models.resolve(v);
-    if (tm && !scene_models.count(v.type))
-      scene_models[v.type] = scene.add_vehicle_model(tm->model->name, meshkit::to_scene(*tm->model), tm->model->antenna);
+
+  std::uint32_t vehicle(const FcdVehicle& v, const FcdTypeModel& tm, const SweepArgs& args) {
+    auto [it, added] = index.emplace(v.id, static_cast<std::uint32_t>(nodes.size()));
+    if (added) {
+      nodes.push_back({v.id, generators::NodeKind::vehicle, tm.vclass, v.type, static_cast<float>(tm.length_m),
+                       static_cast<float>(tm.width_m), static_cast<float>(tm.height_m)});
+    } else if (nodes[it->second].kind == generators::NodeKind::rsu) {
+      throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
+                                "has the id of a road-side unit in " + args.rsus);
+    }
+    return it->second;
+  }
+};
+
+// Scene model of each FCD vehicle type (registered when the type first appears).
+class SceneModels {
+ public:
+  SceneModels(tracer::TraceScene& scene, FcdTypeModels& types) : scene_(scene), types_(types) {}
+
+  const FcdTypeModel* resolve(const FcdVehicle& v) {
+    const FcdTypeModel* tm = types_.resolve(v);
+    if (tm && !models_.count(v.type))
+      models_[v.type] = scene_.add_vehicle_model(tm->model->name, meshkit::to_scene(*tm->model), tm->model->antenna);
     return tm;
-  };
+  }
+  std::uint32_t at(const std::string& type) const { return models_.at(type); }
 
-  FcdReader reader(args.fcd, sweep_fcd_filter(cfg));
-  SweepSelection selection(cfg, bounds, args.fcd);
+ private:
+  tracer::TraceScene& scene_;
+  FcdTypeModels& types_;
+  std::map<std::string, std::uint32_t> models_;
+};
 
-  generators::Sweep sweep(scene, settings.tracer, settings.radio, options, rsus);
-  std::optional<generators::FrameBlockWriter> block;  // streamed to disk: one frame in memory
-  std::uint64_t frame_index = 0, block_index = 0, blocks_resumed = 0;
-  bool skipping_block = false;
-  json block_stats = json::array();
-  auto progress_at = std::chrono::steady_clock::now();
-  double first_time = 0, last_time = 0;
-  FcdFrame frame;
+// The frames' records, one file per block in the parts folder, each
+// committed with its share of the sweep's statistics.
+class BlockStore {
+ public:
+  BlockStore(fs::path parts, const generators::Sweep& sweep) : parts_(std::move(parts)), sweep_(sweep) {}
 
-  generators::SweepStats before;  // sweep statistics at the start of the block
-  auto commit_block = [&]() {
-    if (!block) return;
-    const auto& s = sweep.stats();
-    const json st = {{"frames", s.frames - before.frames},
-                     {"links", s.links - before.links},
-                     {"traced_links", s.traced_links - before.traced_links},
-                     {"vehicle_updates", s.vehicle_updates - before.vehicle_updates},
-                     {"updates_deferred", s.updates_deferred - before.updates_deferred},
-                     {"rays", s.rays - before.rays},
-                     {"trace_seconds", s.trace_seconds - before.trace_seconds}};
-    before = s;
-    write_file_atomic(parts / (block_name(block_index) + ".json"), st.dump() + "\n");
-    block->commit();
-    block.reset();
+  fs::path bin(std::uint64_t b) const { return parts_ / (block_name(b) + ".bin"); }
+  fs::path stats(std::uint64_t b) const { return parts_ / (block_name(b) + ".json"); }
+
+  // A committed block of an earlier run that is intact.
+  bool resumable(std::uint64_t b) const {
+    if (!fs::exists(bin(b)) || !fs::exists(stats(b))) return false;
+    try {
+      generators::verify_frame_block(bin(b));
+      return true;
+    } catch (const meshkit::InputError& e) {
+      spdlog::warn("{}; tracing that block again", e.what());
+      return false;
+    }
+  }
+
+  void append(std::uint64_t b, const generators::FrameRecord& frame) {
+    if (!block_) block_.emplace(bin(b));  // streamed to disk: one frame in memory
+    block_->append(frame);
+  }
+
+  void commit(std::uint64_t b) {
+    if (!block_) return;
+    const auto& s = sweep_.stats();
+    const json st = {{"frames", s.frames - before_.frames},
+                     {"links", s.links - before_.links},
+                     {"traced_links", s.traced_links - before_.traced_links},
+                     {"vehicle_updates", s.vehicle_updates - before_.vehicle_updates},
+                     {"updates_deferred", s.updates_deferred - before_.updates_deferred},
+                     {"rays", s.rays - before_.rays},
+                     {"trace_seconds", s.trace_seconds - before_.trace_seconds}};
+    before_ = s;
+    write_file_atomic(stats(b), st.dump() + "\n");
+    block_->commit();
+    block_.reset();
     // Test hook: die like `kill -9` right after a given number of commits.
     static const char* kill_after = std::getenv("RAYSWEEP_KILL_AFTER_BLOCKS");
     static int committed = 0;
     if (kill_after && ++committed == std::atoi(kill_after)) std::raise(SIGKILL);
-  };
+  }
 
-  while (reader.next(frame)) {
-    if (frame_index % options.block_frames == 0) {
-      if (frame_index > 0) {
-        if (!skipping_block) commit_block();
-        ++block_index;
+ private:
+  fs::path parts_;
+  const generators::Sweep& sweep_;
+  std::optional<generators::FrameBlockWriter> block_;
+  generators::SweepStats before_;  // sweep statistics at the start of the block
+};
+
+generators::SweepVehicle sweep_vehicle(const FcdVehicle& v, const FcdTypeModel& tm, std::uint32_t node,
+                                       std::uint32_t model) {
+  generators::SweepVehicle sv;
+  sv.node = node;
+  sv.model = model;
+  sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
+  sv.heading_deg = v.angle_deg;
+  const double yaw = yaw_from_heading(v.angle_deg);
+  sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
+  sv.length_m = tm.length_m;
+  sv.width_m = tm.width_m;
+  sv.height_m = tm.height_m;
+  return sv;
+}
+
+// How far the frame loop got.
+struct SweepProgress {
+  std::chrono::steady_clock::time_point start, logged_at;
+  std::uint64_t frames = 0, last_block = 0, blocks_resumed = 0;
+  double first_time = 0, last_time = 0;
+};
+
+void log_progress(const SweepProgress& p, const generators::Sweep& sweep, const SweepArgs& args,
+                  const SweepConfig& cfg, double time_s) {
+  const double wall = std::chrono::duration<double>(p.logged_at - p.start).count();
+  const auto& s = sweep.stats();
+  const double fps = static_cast<double>(s.frames) / wall;
+  std::string eta;
+  const double end = std::min(cfg.end_s, args.eta_end_s >= 0 ? args.eta_end_s : 1e300);
+  if (end < 1e299 && p.frames > 1 && p.last_time > p.first_time) {
+    const double dt = (p.last_time - p.first_time) / static_cast<double>(p.frames - 1);
+    const double left = std::max(0.0, (end - p.last_time) / dt) / (args.shard ? args.shard->count : 1);
+    eta = fmt::format(", ETA {:.0f} s", left / std::max(fps, 1e-9));
+  }
+  spdlog::info("frame {} (t = {:.1f} s): {:.1f} frames/s, {:.0f} pair-channels/s, cache hit {:.0f}%{}", p.frames,
+               time_s, fps, s.links / wall, 100 * s.hit_ratio(), eta);
+}
+
+bool owns_block(const SweepArgs& args, std::uint64_t block) { return !args.shard || args.shard->owns(block); }
+
+// Every frame of the FCD: its vehicles through the selection (also in the
+// blocks skipped, so the selection and node table match a full run), traced
+// into the blocks this run owns and has not committed before.
+SweepProgress trace_frames(const SweepArgs& args, const SweepConfig& cfg, std::uint64_t block_frames,
+                           FcdReader& reader, SweepSelection& selection, SceneModels& models, NodeTable& nodes,
+                           generators::Sweep& sweep, BlockStore& store, std::chrono::steady_clock::time_point start) {
+  SweepProgress p;
+  p.start = start;
+  p.logged_at = std::chrono::steady_clock::now();
+  bool skipping_block = false;
+  std::uint64_t& block = p.last_block;
+  auto traceable = [&](const FcdVehicle& v) { return models.resolve(v) != nullptr; };
+  for (FcdFrame frame; reader.next(frame);) {
+    if (p.frames % block_frames == 0) {
+      if (p.frames > 0) {
+        if (!skipping_block) store.commit(block);
+        ++block;
       }
-      skipping_block = !mine(block_index);
-      if (!skipping_block && args.resume && fs::exists(parts / (block_name(block_index) + ".bin")) &&
-          fs::exists(parts / (block_name(block_index) + ".json"))) {
-        try {
-          generators::verify_frame_block(parts / (block_name(block_index) + ".bin"));
-          skipping_block = true;
-          ++blocks_resumed;
-        } catch (const meshkit::InputError& e) {
-          spdlog::warn("{}; tracing that block again", e.what());
-        }
+      skipping_block = !owns_block(args, block);
+      if (!skipping_block && args.resume && store.resumable(block)) {
+        skipping_block = true;
+        ++p.blocks_resumed;
       }
     }
-    if (frame_index == 0) first_time = frame.time_s;
-    last_time = frame.time_s;
+    if (p.frames == 0) p.first_time = frame.time_s;
+    p.last_time = frame.time_s;
 
-    // Vehicles of this frame: types, selection, scene bounds, node ids.
     std::vector<generators::SweepVehicle> vehicles;
-    for (const FcdVehicle* vp : selection.select(frame, [&](const FcdVehicle& v) { return model_for(v) != nullptr; })) {
-      const FcdVehicle& v = *vp;
-      const FcdTypeModel* tm = model_for(v);
-      auto [it, added] = node_index.emplace(v.id, static_cast<std::uint32_t>(node_table.size()));
-      if (added) {
-        node_table.push_back({v.id, generators::NodeKind::vehicle, tm->vclass, v.type, static_cast<float>(tm->length_m),
-                              static_cast<float>(tm->width_m), static_cast<float>(tm->height_m)});
-      } else if (node_table[it->second].kind == generators::NodeKind::rsu) {
-        throw meshkit::InputError(args.fcd, "line " + std::to_string(v.line) + " vehicle " + v.id,
-                                  "has the id of a road-side unit in " + args.rsus);
-      }
-      generators::SweepVehicle sv;
-      sv.node = it->second;
-      sv.model = scene_models.at(v.type);
-      sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
-      sv.heading_deg = v.angle_deg;
-      const double yaw = yaw_from_heading(v.angle_deg);
-      sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
-      sv.length_m = tm->length_m;
-      sv.width_m = tm->width_m;
-      sv.height_m = tm->height_m;
-      vehicles.push_back(sv);
+    for (const FcdVehicle* vp : selection.select(frame, traceable)) {
+      const FcdTypeModel* tm = models.resolve(*vp);
+      vehicles.push_back(sweep_vehicle(*vp, *tm, nodes.vehicle(*vp, *tm, args), models.at(vp->type)));
     }
-    if (!skipping_block) {
-      if (!block) block.emplace(parts / (block_name(block_index) + ".bin"));
-      block->append(sweep.step(frame_index, frame.time_s, std::move(vehicles)));
-    }
-    ++frame_index;
+    if (!skipping_block) store.append(block, sweep.step(p.frames, frame.time_s, std::move(vehicles)));
+    ++p.frames;
 
     const auto now = std::chrono::steady_clock::now();
-    if (now - progress_at > std::chrono::seconds(2)) {
-      progress_at = now;
-      const double wall = std::chrono::duration<double>(now - t_start).count();
-      const auto& s = sweep.stats();
-      const double fps = static_cast<double>(s.frames) / wall;
-      std::string eta;
-      const double end = std::min(cfg.end_s, args.eta_end_s >= 0 ? args.eta_end_s : 1e300);
-      if (end < 1e299 && frame_index > 1 && last_time > first_time) {
-        const double dt = (last_time - first_time) / static_cast<double>(frame_index - 1);
-        const double left = std::max(0.0, (end - last_time) / dt) / (args.shard ? args.shard->count : 1);
-        eta = fmt::format(", ETA {:.0f} s", left / std::max(fps, 1e-9));
-      }
-      spdlog::info("frame {} (t = {:.1f} s): {:.1f} frames/s, {:.0f} pair-channels/s, cache hit {:.0f}%{}",
-                   frame_index, frame.time_s, fps, s.links / wall, 100 * s.hit_ratio(), eta);
+    if (now - p.logged_at > std::chrono::seconds(2)) {
+      p.logged_at = now;
+      log_progress(p, sweep, args, cfg, frame.time_s);
     }
   }
-  if (!skipping_block) commit_block();
-  if (frame_index == 0) throw meshkit::InputError(args.fcd, "", "no frame left after the time/step filters");
-  const std::uint64_t dropped_outside = selection.dropped_outside();
-  if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
+  if (!skipping_block) store.commit(block);
+  if (p.frames == 0) throw meshkit::InputError(args.fcd, "", "no frame left after the time/step filters");
+  return p;
+}
 
+ShardRecord shard_record(const SweepArgs& args, std::uint64_t block_frames, const SweepProgress& p,
+                         const std::string& run_key) {
   ShardRecord shard;
-  if (args.shard) {
-    shard.spec = *args.shard;
-    shard.block_frames = options.block_frames;
-    shard.blocks_total = block_index + 1;
-    shard.frames_total = frame_index;
-    for (std::uint64_t b = 0; b <= block_index; ++b)
-      if (mine(b)) shard.blocks.push_back(b);
-    shard.run_key = sha256_text(run_key + kGitHash);
-    shard.out = args.out;
-    if (shard.blocks.empty())
-      spdlog::warn("{}: shard {} has no block to trace (the sweep has {} blocks of {} frames)", args.out,
-                   args.shard->name(), shard.blocks_total, shard.block_frames);
-  }
+  shard.spec = *args.shard;
+  shard.block_frames = block_frames;
+  shard.blocks_total = p.last_block + 1;
+  shard.frames_total = p.frames;
+  for (std::uint64_t b = 0; b <= p.last_block; ++b)
+    if (owns_block(args, b)) shard.blocks.push_back(b);
+  shard.run_key = sha256_text(run_key + kGitHash);
+  shard.out = args.out;
+  if (shard.blocks.empty())
+    spdlog::warn("{}: shard {} has no block to trace (the sweep has {} blocks of {} frames)", args.out,
+                 args.shard->name(), shard.blocks_total, shard.block_frames);
+  return shard;
+}
 
-  // Assemble the dataset (or the shard) from the committed blocks.
+generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettings& settings,
+                                         const generators::SweepOptions& options, const std::string& shard) {
   generators::DatasetHeader header;
   header.raysweep_version = kVersion;
   header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
+  header.config = id.config;
+  header.inputs = id.prov["inputs"];
+  header.provenance = id.prov;
   header.seed = 0;
-  if (args.shard) header.shard = shard.to_json().dump();
+  header.shard = shard;
   header.carrier_hz = settings.radio.frequency_hz;
   header.bandwidth_hz = settings.radio.bandwidth_hz;
   if (options.cfr) {
     header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
     header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
   }
-  const fs::path tmp = out.string() + ".tmp";
+  return header;
+}
+
+// The dataset (or the shard) from the committed blocks; the blocks' summed statistics.
+json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& header, std::uint64_t last_block,
+                      const BlockStore& store, const NodeTable& nodes, const generators::Sweep& sweep) {
+  StagedFile staged{fs::path(args.out)};
   json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
                  {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
   {
-    generators::DatasetWriter writer(tmp, header);
-    for (std::uint64_t b = 0; b <= block_index; ++b) {
-      if (!mine(b)) continue;
-      generators::FrameBlockReader blocks(parts / (block_name(b) + ".bin"));
+    generators::DatasetWriter writer(staged.path(), header);
+    for (std::uint64_t b = 0; b <= last_block; ++b) {
+      if (!owns_block(args, b)) continue;
+      generators::FrameBlockReader blocks(store.bin(b));
       for (generators::FrameRecord f; blocks.next(f);) writer.append(f);
-      std::ifstream in(parts / (block_name(b) + ".json"));
+      std::ifstream in(store.stats(b));
       const json st = json::parse(in);
       for (auto& [k, v] : totals.items()) {
         if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
@@ -369,34 +433,81 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
       }
     }
     std::vector<std::string> ids;
-    for (const auto& n : node_table) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
-    writer.finish(node_table, sweep.object_names(ids));
+    for (const auto& n : nodes.nodes) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
+    writer.finish(nodes.nodes, sweep.object_names(ids));
   }
-  fs::rename(tmp, out);
-  fs::remove_all(parts);
-  // A merge record next to the file describes an earlier, merged version of it.
-  if (!args.shard) fs::remove(out.string() + ".merge.json");
+  staged.commit();
+  return totals;
+}
 
-  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgress& p, const ShardRecord& shard,
+                   std::size_t nodes, const generators::SweepOptions& options) {
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - p.start).count();
   const auto links = totals["links"].get<std::uint64_t>();
   const auto traced = totals["traced_links"].get<std::uint64_t>();
+  const auto bytes = fs::file_size(args.out);
   json summary = totals;
   summary["out"] = args.out;
-  summary["blocks"] = args.shard ? shard.blocks.size() : block_index + 1;
+  summary["blocks"] = args.shard ? shard.blocks.size() : p.last_block + 1;
   if (args.shard) summary["shard"] = shard.to_json();
-  summary["blocks_resumed"] = blocks_resumed;
-  summary["nodes"] = node_table.size();
+  summary["blocks_resumed"] = p.blocks_resumed;
+  summary["nodes"] = nodes;
   summary["cache"] = generators::cache_mode_name(options.cache);
   summary["cache_hit_ratio"] = links ? 1.0 - static_cast<double>(traced) / links : 0.0;
   summary["wall_seconds"] = wall;
-  summary["bytes"] = fs::file_size(out);
-  summary["bytes_per_link"] = links ? static_cast<double>(fs::file_size(out)) / links : 0.0;
-  summary["dropped_outside"] = dropped_outside;
+  summary["bytes"] = bytes;
+  summary["bytes_per_link"] = links ? static_cast<double>(bytes) / links : 0.0;
   spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s "
                "({:.1f} s tracing); {} ({:.0f} bytes per pair-frame)",
-               totals["frames"].get<std::uint64_t>(), blocks_resumed, links, traced,
+               totals["frames"].get<std::uint64_t>(), p.blocks_resumed, links, traced,
                100 * summary["cache_hit_ratio"].get<double>(), wall, totals["trace_seconds"].get<double>(), args.out,
                summary["bytes_per_link"].get<double>());
+  return summary;
+}
+
+}  // namespace
+
+json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
+  const TraceSettings settings = load_trace_config(args.config);
+  const SweepConfig cfg = load_sweep_config(args.config);
+  generators::SweepOptions options = cfg.options;
+  if (!cfg.cfr.empty()) options.cfr = parse_ofdm_grid(cfg.cfr, settings.radio.frequency_hz);
+  if (!fs::exists(args.fcd)) throw std::invalid_argument(args.fcd + ": FCD file not found");
+  const fs::path scene_file = fs::path(args.scene) / "scene.glb";
+  if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
+  const SweepRunId id = identify_run(args, settings, cfg, scene_file, argv);
+  const fs::path parts = args.out + ".parts";
+  prepare_parts(args, parts, id.run_key);
+
+  // Scene, library, types, road-side units.
+  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), cfg.exclude_objects));
+  const auto bounds = scene.static_bounds();
+  VehicleLibrary library(args.vehicles, cfg.lod);
+  const VTypeMap vtypes = read_vtype_files(args.vtypes);
+  NodeTable nodes(args.rsus);
+  FcdTypeModels type_models(vtypes, library, !args.vehicles.empty(), args.fcd);
+  SceneModels models(scene, type_models);
+  FcdReader reader(args.fcd, sweep_fcd_filter(cfg));
+  SweepSelection selection(cfg, bounds, args.fcd);
+  generators::Sweep sweep(scene, settings.tracer, settings.radio, options, nodes.rsus);
+  BlockStore store(parts, sweep);
+  const SweepProgress p =
+      trace_frames(args, cfg, options.block_frames, reader, selection, models, nodes, sweep, store, t_start);
+  const std::uint64_t dropped_outside = selection.dropped_outside();
+  if (dropped_outside) spdlog::warn("{}: {} vehicle-frames outside the scene dropped", args.fcd, dropped_outside);
+
+  const ShardRecord shard = args.shard ? shard_record(args, options.block_frames, p, id.run_key) : ShardRecord{};
+  const generators::DatasetHeader header =
+      dataset_header(id, settings, options, args.shard ? shard.to_json().dump() : std::string());
+  const json totals = assemble_dataset(args, header, p.last_block, store, nodes, sweep);
+  fs::remove_all(parts);
+  // A merge record next to the file describes an earlier, merged version of it.
+  if (!args.shard) fs::remove(args.out + ".merge.json");
+
+  json summary = sweep_summary(args, totals, p, shard, nodes.nodes.size(), options);
+  summary["dropped_outside"] = dropped_outside;
   return summary;
 }
 

@@ -114,57 +114,49 @@ BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, c
   return out;
 }
 
-json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>& argv) {
-  const auto t0 = std::chrono::steady_clock::now();
-  if (args.out.empty()) throw std::invalid_argument("--out is required");
-  const VehiclesConfig cfg = load_vehicles_config(args.config);
-  std::vector<InputFile> inputs;
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+namespace {
 
-  // Entries: built-in classes, then imported models replacing a class, then vTypes.
-  struct Entry {
-    std::string name, vclass, file;
-  };
-  std::vector<Entry> entries;
-  std::vector<std::string> classes = cfg.classes;
-  if (classes.empty())
-    for (const auto& c : vehicle_classes()) classes.push_back(c.vclass);
-  for (const auto& c : classes) entries.push_back({c, c, ""});
+struct LibraryEntry {
+  std::string name, vclass, file;
+};
+
+// The entries with their --model files (recorded as inputs).
+void add_models(const VehiclesArgs& args, std::vector<LibraryEntry>& entries, std::vector<InputFile>& inputs) {
   for (const auto& spec : args.models) {
     const auto eq = spec.find('=');
     if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size())
       throw std::invalid_argument("--model expects CLASS=FILE, got '" + spec + "'");
     const std::string cls = spec.substr(0, eq), file = spec.substr(eq + 1);
     if (!find_vehicle_class(cls)) throw std::invalid_argument("--model " + spec + ": unknown vehicle class '" + cls + "'");
-    auto it = std::find_if(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == cls; });
+    auto it = std::find_if(entries.begin(), entries.end(), [&](const LibraryEntry& e) { return e.name == cls; });
     if (it == entries.end()) entries.push_back({cls, cls, file});
     else it->file = file;
     inputs.push_back({"model:" + cls, file});
   }
-  std::vector<SumoVType> vtypes;
-  if (!args.vtypes.empty()) {
-    inputs.push_back({"vtypes", args.vtypes});
-    vtypes = read_sumo_vtypes(args.vtypes);
-    for (const auto& vt : vtypes) {
-      if (!find_vehicle_class(vt.vclass)) {
-        spdlog::warn("{}: vType {} has vClass {} which raysweep does not model; skipped", args.vtypes, vt.id, vt.vclass);
-        continue;
-      }
-      if (std::any_of(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == vt.id; }))
-        throw meshkit::InputError(args.vtypes, "line " + std::to_string(vt.line) + " vType " + vt.id,
-                                  "id collides with a vehicle class name");
-      entries.push_back({vt.id, vt.vclass, ""});
-    }
-  }
-  VehiclesConfig effective = cfg;
-  for (const auto& vt : vtypes) {
-    auto& e = effective.entries[vt.id];
-    if (e.dims.length <= 0) e.dims.length = vt.length;
-    if (e.dims.width <= 0) e.dims.width = vt.width;
-    if (e.dims.height <= 0) e.dims.height = vt.height;
-  }
+}
 
-  // Model units: a bare UNIT for every model, then the config's, then CLASS=UNIT.
+// One entry per vType of a modelled class; returns the vTypes read.
+std::vector<SumoVType> add_vtypes(const VehiclesArgs& args, std::vector<LibraryEntry>& entries,
+                                  std::vector<InputFile>& inputs) {
+  std::vector<SumoVType> vtypes;
+  if (args.vtypes.empty()) return vtypes;
+  inputs.push_back({"vtypes", args.vtypes});
+  vtypes = read_sumo_vtypes(args.vtypes);
+  for (const auto& vt : vtypes) {
+    if (!find_vehicle_class(vt.vclass)) {
+      spdlog::warn("{}: vType {} has vClass {} which raysweep does not model; skipped", args.vtypes, vt.id, vt.vclass);
+      continue;
+    }
+    if (std::any_of(entries.begin(), entries.end(), [&](const LibraryEntry& e) { return e.name == vt.id; }))
+      throw meshkit::InputError(args.vtypes, "line " + std::to_string(vt.line) + " vType " + vt.id,
+                                "id collides with a vehicle class name");
+    entries.push_back({vt.id, vt.vclass, ""});
+  }
+  return vtypes;
+}
+
+// Model units: a bare UNIT for every model, then the config's, then CLASS=UNIT.
+void apply_model_units(const VehiclesArgs& args, const std::vector<LibraryEntry>& entries, VehiclesConfig& effective) {
   std::string every_unit;
   std::map<std::string, std::string> class_unit;
   for (const auto& spec : args.model_units) {
@@ -174,7 +166,8 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
     if (parse_model_unit(unit) <= 0)
       throw std::invalid_argument("--model-unit " + spec + ": unknown unit '" + unit + "' (expected " + unit_names() + ")");
     if (eq == std::string::npos) every_unit = unit;
-    else if (std::none_of(entries.begin(), entries.end(), [&](const Entry& e) { return e.name == cls && !e.file.empty(); }))
+    else if (std::none_of(entries.begin(), entries.end(),
+                          [&](const LibraryEntry& e) { return e.name == cls && !e.file.empty(); }))
       throw std::invalid_argument("--model-unit " + spec + ": no --model for '" + cls + "'");
     else class_unit[cls] = unit;
   }
@@ -186,47 +179,45 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
     else if (unit.empty()) unit = every_unit;
     if (!unit.empty()) effective.entries[e.name].model_unit = unit;
   }
+}
 
-  StagedDirectory out(args.out);
-  GltfOptions gopt;
-  gopt.draco = cfg.draco;
-  gopt.draco_position_bits = cfg.draco_position_bits;
-  if (gopt.draco) spdlog::warn("the vehicle library {}", kDracoReadersNote);
-  json list = json::array();
-  std::size_t done = 0;
-  for (const auto& e : entries) {
-    const auto te = std::chrono::steady_clock::now();
-    BuiltVehicle built = build_vehicle(e.name, e.vclass, e.file, effective);
-    for (const auto& w : built.model.warnings) spdlog::warn("{}: {}", e.name, w);
-    json lods = json::array();
-    int default_lod = 0;
-    std::size_t previous = SIZE_MAX;
-    for (std::size_t k = 0; k < cfg.lod_ratios.size(); ++k) {
-      VehicleModel lod = cfg.lod_ratios[k] >= 1 ? built.model : simplify_vehicle(built.model, cfg.lod_ratios[k], cfg.lod_max_error_m);
-      const std::size_t tris = lod.triangle_count();
-      if (tris >= previous) continue;  // cannot shrink further: no duplicate LOD
-      previous = tris;
-      const double h = k == 0 ? 0.0 : hausdorff_distance(built.model, lod);
-      const std::string file = e.name + "_lod" + std::to_string(lods.size()) + ".glb";
-      write_glb(to_scene(lod), (out.path() / file).string(), gopt);
-      const auto er = welded_edge_report(lod);
-      if (h <= cfg.lod_tolerance_m) default_lod = static_cast<int>(lods.size());
-      lods.push_back({{"lod", lods.size()},
-                      {"file", file},
-                      {"ratio", cfg.lod_ratios[k]},
-                      {"triangles", tris},
-                      {"hausdorff_m", h},
-                      {"boundary_edges", er.boundary_edges},
-                      {"area_by_material_m2", lod.area_by_material()}});
-    }
-    built.record["lods"] = lods;
-    built.record["default_lod"] = default_lod;
-    built.record["build_seconds"] =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - te).count();
-    list.push_back(built.record);
-    spdlog::info("vehicles {}/{}: {} ({} triangles, {} LODs, default LOD {})", ++done, entries.size(), e.name,
-                 built.model.triangle_count(), lods.size(), default_lod);
+// Entry `index` of `count` built and written at each LOD that shrinks it; its manifest record.
+json write_entry(const LibraryEntry& e, std::size_t index, std::size_t count, const VehiclesConfig& effective,
+                 const VehiclesConfig& cfg, const fs::path& dir, const GltfOptions& gopt) {
+  const auto te = std::chrono::steady_clock::now();
+  BuiltVehicle built = build_vehicle(e.name, e.vclass, e.file, effective);
+  for (const auto& w : built.model.warnings) spdlog::warn("{}: {}", e.name, w);
+  json lods = json::array();
+  int default_lod = 0;
+  std::size_t previous = SIZE_MAX;
+  for (std::size_t k = 0; k < cfg.lod_ratios.size(); ++k) {
+    VehicleModel lod =
+        cfg.lod_ratios[k] >= 1 ? built.model : simplify_vehicle(built.model, cfg.lod_ratios[k], cfg.lod_max_error_m);
+    const std::size_t tris = lod.triangle_count();
+    if (tris >= previous) continue;  // cannot shrink further: no duplicate LOD
+    previous = tris;
+    const double h = k == 0 ? 0.0 : hausdorff_distance(built.model, lod);
+    const std::string file = e.name + "_lod" + std::to_string(lods.size()) + ".glb";
+    write_glb(to_scene(lod), (dir / file).string(), gopt);
+    const auto er = welded_edge_report(lod);
+    if (h <= cfg.lod_tolerance_m) default_lod = static_cast<int>(lods.size());
+    lods.push_back({{"lod", lods.size()},
+                    {"file", file},
+                    {"ratio", cfg.lod_ratios[k]},
+                    {"triangles", tris},
+                    {"hausdorff_m", h},
+                    {"boundary_edges", er.boundary_edges},
+                    {"area_by_material_m2", lod.area_by_material()}});
   }
+  built.record["lods"] = lods;
+  built.record["default_lod"] = default_lod;
+  built.record["build_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - te).count();
+  spdlog::info("vehicles {}/{}: {} ({} triangles, {} LODs, default LOD {})", index + 1, count, e.name,
+               built.model.triangle_count(), lods.size(), default_lod);
+  return built.record;
+}
+
+json custom_materials_json() {
   json materials = json::array();
   for (const auto& cm : custom_materials())
     materials.push_back({{"name", cm.name},
@@ -234,9 +225,46 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
                          {"sigma_s_per_m", cm.sigma_s_per_m},
                          {"thickness_m", cm.thickness_m},
                          {"basis", cm.basis}});
+  return materials;
+}
+
+}  // namespace
+
+json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (args.out.empty()) throw std::invalid_argument("--out is required");
+  const VehiclesConfig cfg = load_vehicles_config(args.config);
+  std::vector<InputFile> inputs;
+  if (!args.config.empty()) inputs.push_back({"config", args.config});
+
+  // Entries: built-in classes, then imported models replacing a class, then vTypes.
+  std::vector<LibraryEntry> entries;
+  std::vector<std::string> classes = cfg.classes;
+  if (classes.empty())
+    for (const auto& c : vehicle_classes()) classes.push_back(c.vclass);
+  for (const auto& c : classes) entries.push_back({c, c, ""});
+  add_models(args, entries, inputs);
+  const std::vector<SumoVType> vtypes = add_vtypes(args, entries, inputs);
+  VehiclesConfig effective = cfg;
+  for (const auto& vt : vtypes) {
+    auto& e = effective.entries[vt.id];
+    if (e.dims.length <= 0) e.dims.length = vt.length;
+    if (e.dims.width <= 0) e.dims.width = vt.width;
+    if (e.dims.height <= 0) e.dims.height = vt.height;
+  }
+  apply_model_units(args, entries, effective);
+
+  StagedDirectory out(args.out);
+  GltfOptions gopt;
+  gopt.draco = cfg.draco;
+  gopt.draco_position_bits = cfg.draco_position_bits;
+  if (gopt.draco) spdlog::warn("the vehicle library {}", kDracoReadersNote);
+  json list = json::array();
+  for (std::size_t i = 0; i < entries.size(); ++i)
+    list.push_back(write_entry(entries[i], i, entries.size(), effective, cfg, out.path(), gopt));
   json manifest = {{"frame", "metres; z up; front along +x; origin at the front-bumper centre on the ground"},
                    {"vehicles", list},
-                   {"custom_materials", materials},
+                   {"custom_materials", custom_materials_json()},
                    {"provenance", provenance("vehicles", inputs, effective.to_json(), argv)}};
   // Build times vary run to run; keep them out of the byte-compared manifest.
   json timings = json::object();

@@ -132,4 +132,13 @@ std::optional<ResolvedType> VTypeMap::resolve(const std::string& type_id) const 
 
 std::size_t VTypeMap::size() const { return types_.size(); }
 
+VTypeMap read_vtype_files(const std::vector<std::string>& files) {
+  VTypeMap vtypes;
+  for (const auto& f : files) {
+    if (std::filesystem::path(f).extension() == ".sumocfg") vtypes.add_sumocfg(f);
+    else vtypes.add_file(f);
+  }
+  return vtypes;
+}
+
 }  // namespace raysweep::pipeline

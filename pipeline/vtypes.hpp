@@ -65,4 +65,8 @@ class VTypeMap {
   std::map<std::string, Entry> types_;
 };
 
+// The vTypes of route/additional files and .sumocfg files (add_sumocfg for
+// those, add_file for the others), in order.
+VTypeMap read_vtype_files(const std::vector<std::string>& files);
+
 }  // namespace raysweep::pipeline
