@@ -20,6 +20,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -310,10 +311,37 @@ class Table : public TableBase {
     e.doc = {key, v.type, v.range, std::move(unit), std::move(help), std::move(default_doc), false, v.sub};
     e.read = [v, field](const toml::node& n, const At& at, Cfg& c) { std::invoke(field, c) = v.read(n, at); };
     e.write = [v, field](const Cfg& c) { return v.write(std::invoke(field, c)); };
+    if constexpr (std::is_same_v<T, bool>) {
+      e.get = [field](const Cfg& c) { return static_cast<bool>(std::invoke(field, c)); };
+      e.flip = [field](Cfg& c) { std::invoke(field, c) = !std::invoke(field, c); };
+    }
     e.doc.default_value = e.doc.default_value.empty() ? "`" + doc_value(e.write(prototype_)) + "`" : e.doc.default_value;
     entries_.push_back(std::move(e));
     return *this;
   }
+  // The last declared key (a boolean) is a switch `raysweep tradeoff` flips
+  // against the base setting where `applies(base)` holds (always when
+  // empty): "-label" when it is on, "+label" when off, or `off_label` and
+  // `on_label` in full when given. A mechanism's switch declares its study
+  // here, so the tradeoff grid follows the declared config.
+  Table& toggle(std::string label, std::function<bool(const Cfg&)> applies = {}, std::string off_label = "",
+                std::string on_label = "") {
+    Entry& e = entries_.back();
+    if (!e.flip) throw std::logic_error("config schema: toggle on non-boolean key " + e.doc.key);
+    toggles_.push_back({e.doc.key, off_label.empty() ? "-" + label : off_label,
+                        on_label.empty() ? "+" + label : on_label, std::move(applies), e.get, e.flip});
+    return *this;
+  }
+  // A declared switch (toggle()).
+  struct Toggle {
+    std::string key;
+    std::string off_label, on_label;  // the variant's label when it turns the switch off / on
+    std::function<bool(const Cfg&)> applies;
+    std::function<bool(const Cfg&)> get;
+    std::function<void(Cfg&)> flip;
+  };
+  const std::vector<Toggle>& toggles() const { return toggles_; }
+
   // The last declared key must be given.
   Table& required() {
     entries_.back().doc.required = true;
@@ -372,6 +400,8 @@ class Table : public TableBase {
     KeyDoc doc;
     std::function<void(const toml::node&, const At&, Cfg&)> read;
     std::function<nlohmann::json(const Cfg&)> write;
+    std::function<bool(const Cfg&)> get;  // booleans only
+    std::function<void(Cfg&)> flip;       // booleans only
   };
   const Entry* find(const std::string& key) const {
     for (const auto& e : entries_)
@@ -380,6 +410,7 @@ class Table : public TableBase {
   }
   Cfg prototype_;
   std::vector<Entry> entries_;
+  std::vector<Toggle> toggles_;
   std::function<void(const toml::table&, const At&, Cfg&)> names_;
   std::function<nlohmann::json(const Cfg&)> names_write_;
 };

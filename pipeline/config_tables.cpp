@@ -348,6 +348,15 @@ const Table<TraceSettings>& radio_table() {
 }
 
 const Table<TraceSettings>& tracer_table() {
+  // Where a switch matters (its tradeoff study runs only there).
+  static const auto rays_diffuse = [](const TraceSettings& c) {
+    return c.tracer.diffuse && c.tracer.diffuse_integration == tracer::DiffuseIntegration::rays;
+  };
+  static const auto image_search = [](int depth) {
+    return [depth](const TraceSettings& c) {
+      return c.tracer.candidates == tracer::CandidateSearch::image && c.tracer.max_depth >= depth;
+    };
+  };
   static const Table<TraceSettings> t = [] {
     Table<TraceSettings> t("tracer", "The path solver (docs/tracer.md).");
     t.key("max_depth", integer<int>(between(0, tracer::kMaxDepth)), FIELD(tracer.max_depth), "",
@@ -355,6 +364,7 @@ const Table<TraceSettings>& tracer_table() {
     t.key("los", boolean(), FIELD(tracer.los), "", "trace the direct path");
     t.key("specular", boolean(), FIELD(tracer.specular), "", "trace specular reflections");
     t.key("refraction", boolean(), FIELD(tracer.refraction), "", "transmission through slabs, without bending");
+    t.toggle("refraction");
     t.key("rays_per_source", integer<int>(at_least(1)), FIELD(tracer.rays_per_source), "",
           "shoot-and-bounce rays per antenna (orders the image search does not cover)");
     t.key("reception_radius_factor", number(above(0)), FIELD(tracer.reception_radius_factor), "",
@@ -370,6 +380,7 @@ const Table<TraceSettings>& tracer_table() {
     t.key("sbr_transmission_loss_db", number(at_least(0)), FIELD(tracer.sbr_transmission_loss_db), "dB",
           "search rays continue through slabs within this loss budget");
     t.key("diffuse", boolean(), FIELD(tracer.diffuse), "", "effective-roughness diffuse scattering");
+    t.toggle("diffuse");
     t.key("diffuse_integration",
           enumeration<tracer::DiffuseIntegration>({{"tiles", tracer::DiffuseIntegration::tiles},
                                                    {"rays", tracer::DiffuseIntegration::rays},
@@ -385,29 +396,38 @@ const Table<TraceSettings>& tracer_table() {
     t.key("diffuse_both_ends", boolean(), FIELD(tracer.diffuse_both_ends), "",
           "rays: both ends' rays gather (first order weighted by the balance heuristic; scattering before "
           "reflections from the end that reaches it); false: the lower end's rays alone");
+    t.toggle("", rays_diffuse, "diffuse one end", "diffuse both ends");
     t.key("diffuse_roulette_db", number(at_least(0)), FIELD(tracer.diffuse_roulette_db), "dB",
           "rays: samples this far below the sensitivity (|a|^2 under sensitivity - tx power) play Russian "
           "roulette before their shadow ray (unbiased; >= 300: off)");
     t.key("vehicle_multi_bounce", boolean(), FIELD(tracer.vehicle_multi_bounce), "",
           "image search: two and three reflections on one vehicle from a per-model table of multi-bounce sequences");
+    t.toggle("vehicle multi-bounce", image_search(2));
     t.key("ground_order3", boolean(), FIELD(tracer.ground_order3), "",
           "image search: three reflections with one on the ground, exactly: among static faces (wall, ground, "
           "wall; the ground first or last), and a wall, a vehicle and the ground in any order");
+    t.toggle("ground order 3", image_search(3));
     t.key("beam_order3", boolean(), FIELD(tracer.beam_order3), "",
           "image search: three reflections beginning on a static face and a second face the rays light "
           "(a wall or a vehicle's), the third face from their beam");
+    t.toggle("beam order 3", image_search(3));
     t.key("diffraction", boolean(), FIELD(tracer.diffraction), "", "first-order UTD edge diffraction on the static scene");
+    t.toggle("diffraction");
     t.key("diffraction_reflection", boolean(), FIELD(tracer.diffraction_reflection), "",
           "with diffraction: a reflection on a static face before or after the edge (reflection-diffraction, "
           "diffraction-reflection)");
+    t.toggle("reflection-diffraction", [](const TraceSettings& c) { return c.tracer.diffraction; });
     t.key("vehicle_diffraction", boolean(), FIELD(tracer.vehicle_diffraction), "",
           "vehicles in the first Fresnel zone: P.526 knife-edge loss on the direct path");
+    t.toggle("vehicle knife edges");
     t.key("vehicle_diffraction_reflected", boolean(), FIELD(tracer.vehicle_diffraction_reflected), "",
           "with vehicle_diffraction: the same on every specular path (each leg against the unfolded path's first "
           "zone); a path only vehicles block is traced through them, attenuated (off: 30-70 % more time)");
+    t.toggle("reflected knife edges", [](const TraceSettings& c) { return c.tracer.vehicle_diffraction; });
     t.key("vehicle_edge_diffraction", boolean(), FIELD(tracer.vehicle_edge_diffraction), "",
           "first-order UTD diffraction on the vehicles' edges (roofs, hoods, pillars); a vehicle in the direct "
           "path's first zone diffracts by its knife edge instead (faded between 1.0 and 0.55 r1)");
+    t.toggle("vehicle edges");
     t.key("vehicle_edge_floor_db", number(), FIELD(tracer.vehicle_edge_floor_db), "dB",
           "with vehicle_edge_diffraction: vehicle-edge paths this far below the pair's direct free-space power "
           "are not traced");
