@@ -24,6 +24,7 @@
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
+#include "pipeline/config_tables.hpp"
 #include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/version.hpp"
@@ -346,37 +347,37 @@ TradeoffSetting reference_setting(const tracer::TracerConfig& base, const GridAx
   return ref;
 }
 
-// A variant with one switch of the base turned over, labelled "-what" or "+what".
-void add_toggle(const GridBase& b, std::vector<TradeoffSetting>& grid, const std::string& what,
-                bool tracer::TracerConfig::*flag) {
-  auto s = b.variant((b.tracer.*flag ? "-" : "+") + what);
-  s.tracer.*flag = !(b.tracer.*flag);
-  grid.push_back(s);
+// Each switch the [tracer] table declares a study for (config_tables.cpp,
+// Table::toggle), turned over against the base where it applies: a new
+// mechanism's switch joins the grid from its declaration.
+void add_declared_toggles(const GridBase& b, const tracer::RadioConfig& radio, std::vector<TradeoffSetting>& grid) {
+  TraceSettings base{radio, b.variant("").tracer};
+  for (const auto& t : tracer_table().toggles()) {
+    if (t.applies && !t.applies(base)) continue;
+    TraceSettings flipped = base;
+    t.flip(flipped);
+    auto s = b.variant(t.get(base) ? t.off_label : t.on_label);
+    s.tracer = flipped.tracer;
+    grid.push_back(s);
+  }
 }
 
-// Each mechanism on or off.
+// The mechanisms together: all on, or the geometrical-optics core alone.
 void add_mechanism_variants(const GridBase& b, std::vector<TradeoffSetting>& grid) {
   const tracer::TracerConfig& base = b.tracer;
-  add_toggle(b, grid, "diffuse", &tracer::TracerConfig::diffuse);
-  add_toggle(b, grid, "diffraction", &tracer::TracerConfig::diffraction);
-  add_toggle(b, grid, "vehicle knife edges", &tracer::TracerConfig::vehicle_diffraction);
-  if (base.vehicle_diffraction)
-    add_toggle(b, grid, "reflected knife edges", &tracer::TracerConfig::vehicle_diffraction_reflected);
-  add_toggle(b, grid, "vehicle edges", &tracer::TracerConfig::vehicle_edge_diffraction);
-  add_toggle(b, grid, "refraction", &tracer::TracerConfig::refraction);
   if (!base.diffuse || !base.diffraction || !base.refraction || !base.specular || !base.los) {
     auto s = b.variant("all mechanisms");
     s.tracer.los = s.tracer.specular = s.tracer.refraction = s.tracer.diffuse = s.tracer.diffraction = true;
     grid.push_back(s);
   } else {
-    // The geometrical-optics core alone: what diffuse and diffraction add together.
+    // What diffuse and diffraction add together.
     auto s = b.variant("specular only");
     s.tracer.diffuse = s.tracer.diffraction = false;
     grid.push_back(s);
   }
 }
 
-// The diffuse integration: the other methods, coarser tiles, and the ray method's options.
+// The diffuse integration: the other methods, coarser tiles, the ray method's roulette.
 void add_diffuse_variants(const GridBase& b, std::vector<TradeoffSetting>& grid) {
   const tracer::TracerConfig& base = b.tracer;
   if (!base.diffuse) return;
@@ -399,30 +400,17 @@ void add_diffuse_variants(const GridBase& b, std::vector<TradeoffSetting>& grid)
     grid.push_back(s);
     return;
   }
-  // Diffuse by rays: both ends' samples, or the lower end's alone.
-  auto s = b.variant(base.diffuse_both_ends ? "diffuse one end" : "diffuse both ends");
-  s.tracer.diffuse_both_ends = !base.diffuse_both_ends;
-  grid.push_back(s);
-  // The roulette on weak samples' shadow rays.
+  // Diffuse by rays: the roulette on weak samples' shadow rays.
   const bool on = base.diffuse_roulette_db < 300;
-  s = b.variant(on ? "-diffuse roulette" : "+diffuse roulette");
+  auto s = b.variant(on ? "-diffuse roulette" : "+diffuse roulette");
   s.tracer.diffuse_roulette_db = on ? 300 : 20;
   grid.push_back(s);
 }
 
-// The candidate search: the image search's options, and image against sampling.
+// The candidate search: image against sampling.
 void add_search_variants(const GridBase& b, std::vector<TradeoffSetting>& grid) {
   const tracer::TracerConfig& base = b.tracer;
   const bool image = base.candidates == tracer::CandidateSearch::image;
-  // The per-model multi-bounce table of the image search.
-  if (image && b.depth >= 2) add_toggle(b, grid, "vehicle multi-bounce", &tracer::TracerConfig::vehicle_multi_bounce);
-  // Its order-3 static paths through the ground.
-  if (image && b.depth >= 3) add_toggle(b, grid, "ground order 3", &tracer::TracerConfig::ground_order3);
-  // Its order-3 sequences in the lit beams of static face pairs.
-  if (image && b.depth >= 3) add_toggle(b, grid, "beam order 3", &tracer::TracerConfig::beam_order3);
-  // Reflection on a static face before or after a diffracting edge.
-  if (base.diffraction)
-    add_toggle(b, grid, "reflection-diffraction", &tracer::TracerConfig::diffraction_reflection);
   // What the exact image search costs and buys over sampling alone.
   if (base.candidates != tracer::CandidateSearch::exhaustive) {
     auto s = b.variant(image ? "sbr search" : "image search");
@@ -432,7 +420,7 @@ void add_search_variants(const GridBase& b, std::vector<TradeoffSetting>& grid) 
 }
 
 // The reference first, then rays x depths, then the variants of the base.
-std::vector<TradeoffSetting> build_grid(const GridBase& b, const GridAxes& axes) {
+std::vector<TradeoffSetting> build_grid(const GridBase& b, const GridAxes& axes, const tracer::RadioConfig& radio) {
   std::vector<TradeoffSetting> grid{reference_setting(b.tracer, axes)};
   for (int r : axes.rays)
     for (int d : axes.depths) {
@@ -444,6 +432,7 @@ std::vector<TradeoffSetting> build_grid(const GridBase& b, const GridAxes& axes)
       s.lod = b.lod;
       grid.push_back(s);
     }
+  add_declared_toggles(b, radio, grid);
   add_mechanism_variants(b, grid);
   add_diffuse_variants(b, grid);
   add_search_variants(b, grid);
@@ -929,7 +918,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   // Built-in models are full detail (a library's LOD 0).
   const GridBase base = grid_base(settings.tracer, axes, in.library_mode() ? cfg.lod : 0);
   TradeoffRun run;
-  run.grid = build_grid(base, axes);
+  run.grid = build_grid(base, axes, settings.radio);
   for (const auto& s : run.grid) tracer::validate(s.tracer, settings.radio);
 
   spdlog::info("tradeoff: reading {} and {}", in.scene_file.string(), in.fcd);
