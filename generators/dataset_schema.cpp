@@ -28,6 +28,7 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/sinr/sinr_file.hpp"
 #include "meshkit/errors.hpp"
@@ -131,13 +132,13 @@ struct Tally {
 // cross-dataset rules come from rules().
 class Validator {
  public:
-  Validator(std::string path, Handle fid, const nlohmann::json& schema, std::vector<std::string>& problems)
-      : path_(std::move(path)), problems_(problems), fid_(std::move(fid)), schema_(schema),
+  Validator(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems)
+      : path_(file.path()), problems_(problems), file_(file), schema_(schema),
         supported_major_(major_version(schema.at("schema_version").get<std::string>()).value_or(-1)) {}
   virtual ~Validator() = default;
 
   void run() {
-    check_attributes(fid_.get(), "/", schema_.at("attributes"));
+    check_attributes(file_.id(), "/", schema_.at("attributes"));
     for (const auto& g : schema_.at("groups")) check_group(g);
     check_root_counts(schema_.at("attributes"));
     for (const auto& g : schema_.at("groups"))
@@ -151,7 +152,7 @@ class Validator {
 
   std::string path_;
   std::vector<std::string>& problems_;
-  Handle fid_;
+  const hdf5::CheckedFile& file_;
   const nlohmann::json& schema_;
   int supported_major_;
   std::map<std::string, Handle> groups_;
@@ -309,11 +310,11 @@ class Validator {
   void check_group(const nlohmann::json& g) {
     const std::string name = g.at("name");
     const std::string gpath = "/" + name;
-    if (!has_link(fid_.get(), name)) {
+    if (!has_link(file_.id(), name)) {
       if (!g.value("optional", false)) problem(gpath + ": group missing");
       return;
     }
-    Handle gid(H5Gopen2(fid_.get(), name.c_str(), H5P_DEFAULT), H5Gclose);
+    Handle gid(H5Gopen2(file_.id(), name.c_str(), H5P_DEFAULT), H5Gclose);
     if (!gid.valid()) {
       problem(gpath + ": not a group (" + hdf5_error_text() + ")");
       return;
@@ -830,35 +831,20 @@ class Ns3TableValidator : public Validator {
 };
 
 // ---------------------------------------------------------------------------
-// dataset_info helpers: readers that throw meshkit::InputError naming the file.
+// dataset_info helpers over the checked file. Their dataset errors keep the
+// column readers' whole text after the object ("FILE: /x: /x: not an array"),
+// which tests pin.
 
 struct InfoReader {
   std::string path;
-  Handle fid;
+  hdf5::CheckedFile file;
 
-  [[noreturn]] void fail(const std::string& element, const std::string& what) const {
-    const std::string h5 = hdf5_error_text();
-    throw meshkit::InputError(path, element, what + (h5.empty() ? "" : " (" + h5 + ")"));
-  }
+  [[noreturn]] void fail(const std::string& element, const std::string& what) const { file.fail(element, what); }
   template <class F>
   auto guard(const std::string& element, F&& f) const {
-    try {
-      return f();
-    } catch (const ReadError& e) {
-      throw meshkit::InputError(path, element, e.what());
-    }
+    return file.guard(element, std::forward<F>(f));
   }
-  Handle open(const std::string& p) const {
-    const auto slash = p.find('/', 1);
-    if (!has_link(fid.get(), p.substr(1, slash - 1)) || !has_link(fid.get(), p.substr(1))) fail(p, "missing dataset");
-    Handle d(H5Dopen2(fid.get(), p.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) fail(p, "cannot open dataset");
-    return d;
-  }
-  bool exists(const std::string& p) const {
-    const auto slash = p.find('/', 1);
-    return has_link(fid.get(), p.substr(1, slash - 1)) && (slash == std::string::npos || has_link(fid.get(), p.substr(1)));
-  }
+  bool exists(const std::string& p) const { return file.exists(p); }
   // The first dimension; a ReadError for a scalar dataset (fuzz_sinr_h5 found
   // dims.at(0) throwing std::out_of_range past guard() here).
   static hsize_t length(hid_t d, const std::string& p) {
@@ -867,13 +853,13 @@ struct InfoReader {
     return dims[0];
   }
   hsize_t rows(const std::string& p) const {
-    Handle d = open(p);
+    const hdf5::Dataset d = file.dataset(p);
     return guard(p, [&] { return length(d.get(), p); });
   }
   // Calls fn(block) for consecutive blocks of an integer column.
   template <class Fn>
   void scan_u64(const std::string& p, Fn&& fn) const {
-    Handle d = open(p);
+    const hdf5::Dataset d = file.dataset(p);
     guard(p, [&] {
       const hsize_t n = length(d.get(), p);
       for (hsize_t start = 0; start < n; start += kBlockRows) fn(read_u64(d.get(), p, start, std::min(kBlockRows, n - start)));
@@ -881,22 +867,21 @@ struct InfoReader {
     });
   }
   std::string str_attr(const std::string& name, const std::string& fallback) const {
-    if (!has_attr(fid.get(), name)) return fallback;
-    return guard("attribute " + name, [&] { return read_str_attr(fid.get(), "/", name); });
+    return file.attr_if<std::string>("/", name).value_or(fallback);
   }
   // Every element of a numeric column.
   std::vector<double> all_f64(const std::string& p) const {
-    Handle d = open(p);
+    const hdf5::Dataset d = file.dataset(p);
     return guard(p, [&] { return read_f64(d.get(), p, 0, length(d.get(), p)); });
   }
   std::vector<std::uint64_t> all_u64(const std::string& p) const {
-    Handle d = open(p);
+    const hdf5::Dataset d = file.dataset(p);
     return guard(p, [&] { return read_u64(d.get(), p, 0, length(d.get(), p)); });
   }
+  // An attribute of `object` ("/" for the root); nullopt when missing.
   template <class T>
-  std::optional<T> num_attr(hid_t loc, const std::string& name, hid_t mtype) const {
-    if (!has_attr(loc, name)) return std::nullopt;
-    return guard("attribute " + name, [&] { return read_num_attr<T>(loc, "/", name, mtype); });
+  std::optional<T> num_attr(const std::string& object, const std::string& name) const {
+    return file.attr_if<T>(object, name);
   }
 };
 
@@ -930,16 +915,13 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["schema_version"] = r.str_attr("schema_version", "");
   info["raysweep_version"] = r.str_attr("raysweep_version", "");
   info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>(r.fid.get(), "complete", H5T_NATIVE_UINT64).value_or(0) == 1;
-  info["carrier_hz"] = r.num_attr<double>(r.fid.get(), "carrier_hz", H5T_NATIVE_DOUBLE).value_or(0.0);
-  info["bandwidth_hz"] = r.num_attr<double>(r.fid.get(), "bandwidth_hz", H5T_NATIVE_DOUBLE).value_or(0.0);
+  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  info["carrier_hz"] = r.num_attr<double>("/", "carrier_hz").value_or(0.0);
+  info["bandwidth_hz"] = r.num_attr<double>("/", "bandwidth_hz").value_or(0.0);
 
   // Frames and their time span.
   {
-    Handle d = r.open("/frames/time_s");
-    const auto t = r.guard("/frames/time_s", [&] {
-      return read_f64(d.get(), "/frames/time_s", 0, InfoReader::length(d.get(), "/frames/time_s"));
-    });
+    const auto t = r.all_f64("/frames/time_s");
     info["frames"] = t.size();
     info["time_start_s"] = t.empty() ? 0.0 : t.front();
     info["time_end_s"] = t.empty() ? 0.0 : t.back();
@@ -980,17 +962,16 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["mean_paths_per_in_range_link"] = in_range ? static_cast<double>(paths) / static_cast<double>(in_range) : 0.0;
 
   // Frequency responses.
-  const bool has_cfr = has_link(r.fid.get(), "cfr");
+  const bool has_cfr = r.exists("/cfr");
   info["has_cfr"] = has_cfr;
   std::uint64_t subcarriers = 0;
   if (has_cfr) {
-    Handle g(H5Gopen2(r.fid.get(), "cfr", H5P_DEFAULT), H5Gclose);
-    if (!g.valid()) r.fail("/cfr", "cannot open group");
-    subcarriers = r.num_attr<std::uint64_t>(g.get(), "subcarriers", H5T_NATIVE_UINT64).value_or(0);
+    r.file.group("/cfr");
+    subcarriers = r.num_attr<std::uint64_t>("/cfr", "subcarriers").value_or(0);
   }
   info["subcarriers"] = subcarriers;
   // Shard files of a split sweep say which part of it they hold.
-  if (has_attr(r.fid.get(), "shard")) {
+  if (r.file.has_attr("/", "shard")) {
     const std::string text = r.str_attr("shard", "");
     if (nlohmann::json::accept(text)) info["shard"] = nlohmann::json::parse(text);
   }
@@ -1068,19 +1049,18 @@ std::string format_channel_info(const nlohmann::json& info) {
 
 // Summary of a SINR outcome file (format checked by the caller).
 nlohmann::json sinr_info(const InfoReader& r) {
-  const hid_t root = r.fid.get();
   nlohmann::json info;
   info["file"] = r.path;
   info["format"] = sinr::kSinrFormat;
   info["schema_version"] = r.str_attr("schema_version", "");
   info["raysweep_version"] = r.str_attr("raysweep_version", "");
   info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>(root, "complete", H5T_NATIVE_UINT64).value_or(0) == 1;
+  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
   info["channel_model"] = r.str_attr("channel_model", "");
-  info["los_from_ray"] = r.num_attr<std::uint64_t>(root, "los_from_ray", H5T_NATIVE_UINT64).value_or(0) != 0;
+  info["los_from_ray"] = r.num_attr<std::uint64_t>("/", "los_from_ray").value_or(0) != 0;
   for (const char* k :
        {"carrier_hz", "sinr_threshold_db", "sensitivity_dbm", "gain_threshold_db", "time_start_s", "time_end_s"})
-    info[k] = r.num_attr<double>(root, k, H5T_NATIVE_DOUBLE).value_or(0.0);
+    info[k] = r.num_attr<double>("/", k).value_or(0.0);
 
   // The node and PRR tables are written by finish(): absent in an unfinished file.
   info["nodes"] = r.exists("/nodes/id") ? r.rows("/nodes/id") : 0;
@@ -1165,17 +1145,16 @@ std::string format_sinr_info(const nlohmann::json& info) {
 
 // Summary of an ns-3 lookup table (format checked by the caller).
 nlohmann::json ns3_table_info(const InfoReader& r) {
-  const hid_t root = r.fid.get();
   nlohmann::json info;
   info["file"] = r.path;
   info["format"] = kNs3TableFormat;
   info["schema_version"] = r.str_attr("schema_version", "");
   info["raysweep_version"] = r.str_attr("raysweep_version", "");
   info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>(root, "complete", H5T_NATIVE_UINT64).value_or(0) == 1;
+  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
   for (const char* k : {"carrier_hz", "bandwidth_hz", "time_start_s", "time_end_s", "frame_step_s"})
-    info[k] = r.num_attr<double>(root, k, H5T_NATIVE_DOUBLE).value_or(0.0);
-  const auto source = r.num_attr<std::uint64_t>(root, "gain_source", H5T_NATIVE_UINT64).value_or(255);
+    info[k] = r.num_attr<double>("/", k).value_or(0.0);
+  const auto source = r.num_attr<std::uint64_t>("/", "gain_source").value_or(255);
   info["gain_source"] = source <= 1 ? gain_source_name(static_cast<GainSource>(source)) : "unknown";
   add_node_kinds(info, r);
   info["frames"] = r.rows("/frames/time_s");
@@ -1189,11 +1168,10 @@ nlohmann::json ns3_table_info(const InfoReader& r) {
   info["los_counts"] = {{"LOS", los[0]}, {"NLOSV", los[1]}, {"NLOS", los[2]}};
   if (other_class) info["los_counts"]["invalid"] = other_class;
   std::uint64_t bands = 0;
-  if (has_link(root, "spectrum")) {
-    Handle g(H5Gopen2(root, "spectrum", H5P_DEFAULT), H5Gclose);
-    if (!g.valid()) r.fail("/spectrum", "cannot open group");
-    bands = r.num_attr<std::uint64_t>(g.get(), "band_count", H5T_NATIVE_UINT64).value_or(0);
-    info["band_width_hz"] = r.num_attr<double>(g.get(), "band_width_hz", H5T_NATIVE_DOUBLE).value_or(0.0);
+  if (r.exists("/spectrum")) {
+    r.file.group("/spectrum");
+    bands = r.num_attr<std::uint64_t>("/spectrum", "band_count").value_or(0);
+    info["band_width_hz"] = r.num_attr<double>("/spectrum", "band_width_hz").value_or(0.0);
   }
   info["bands"] = bands;
   add_file_size(info, r.path, pairs, "bytes_per_pair_frame");
@@ -1238,33 +1216,19 @@ std::string format_ns3_table_info(const nlohmann::json& info) {
 
 // Opens the file, reads its format and runs that format's validator.
 void validate_file(const std::string& path, std::vector<std::string>& problems) {
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) {
-    problems.push_back(path + ": not a readable file");
-    return;
-  }
-  if (H5Fis_hdf5(path.c_str()) <= 0) {
-    hdf5_error_text();
-    problems.push_back(path + ": not an HDF5 file (or unreadable)");
-    return;
-  }
-  Handle fid(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!fid.valid()) {
-    const std::string h5 = hdf5_error_text();
-    problems.push_back(path + ": cannot open as HDF5 (truncated or corrupt?)" + (h5.empty() ? "" : ": " + h5));
-    return;
-  }
-  // Without a known format there is no schema to check against: one problem.
-  if (!has_attr(fid.get(), "format")) {
-    problems.push_back(path + ": attribute format missing: not a raysweep file (expected one of " + known_formats() +
-                       ")");
-    return;
-  }
+  hdf5::CheckedFile file(path);
   std::string format;
   try {
-    format = read_str_attr(fid.get(), "/", "format");
-  } catch (const std::exception& e) {
-    problems.push_back(path + ": " + e.what());
+    file.open();
+    // Without a known format there is no schema to check against: one problem.
+    if (!file.has_attr("/", "format")) {
+      problems.push_back(path + ": attribute format missing: not a raysweep file (expected one of " + known_formats() +
+                         ")");
+      return;
+    }
+    format = file.attr<std::string>("/", "format");
+  } catch (const meshkit::InputError& e) {
+    problems.push_back(e.what());
     return;
   }
   const nlohmann::json* schema = schema_of(format);
@@ -1273,11 +1237,11 @@ void validate_file(const std::string& path, std::vector<std::string>& problems) 
     return;
   }
   if (format == kDatasetFormat)
-    ChannelValidator(path, std::move(fid), *schema, problems).run();
+    ChannelValidator(file, *schema, problems).run();
   else if (format == kNs3TableFormat)
-    Ns3TableValidator(path, std::move(fid), *schema, problems).run();
+    Ns3TableValidator(file, *schema, problems).run();
   else
-    SinrValidator(path, std::move(fid), *schema, problems).run();
+    SinrValidator(file, *schema, problems).run();
 }
 
 std::vector<std::string> validate_in_process(const std::string& path) {
@@ -1355,15 +1319,8 @@ std::vector<std::string> validate_dataset(const std::string& path) {
 
 nlohmann::json dataset_info(const std::string& path) {
   QuietHdf5 quiet;
-  InfoReader r{path, {}};
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw meshkit::InputError(path, "", "not a readable file");
-  if (H5Fis_hdf5(path.c_str()) <= 0) {
-    hdf5_error_text();
-    throw meshkit::InputError(path, "", "not an HDF5 file");
-  }
-  r.fid = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!r.fid.valid()) r.fail("", "cannot open as HDF5 (truncated or corrupt?)");
+  InfoReader r{path, hdf5::CheckedFile(path)};
+  r.file.open();
 
   const std::string format = r.str_attr("format", "");
   if (format == kDatasetFormat) return channel_info(r);
