@@ -6,7 +6,8 @@
 // shuffle + deflate columns filled a chunk at a time, one-shot tables, attributes,
 // and a file without object time stamps (the same calls give the same bytes) whose
 // `complete` attribute is written last. Reading: typed row and attribute readers
-// that throw ReadError naming the dataset or attribute.
+// that throw ReadError naming the dataset or attribute; the readers of the file
+// formats reach them through hdf5_file.hpp's CheckedFile, which names the file too.
 #pragma once
 
 #include <hdf5.h>
