@@ -53,6 +53,13 @@ class Dataset {
   const Dataset& expect_dtype(const std::string& dtype) const;
   // The rank is extents.size() and every fixed extent matches.
   const Dataset& expect(const Extents& extents) const;
+  // [rows] when width is 1, else [rows, width]. Built without braces: clang 14
+  // reads Extents{rows} inside a template as a vector of `rows` free extents.
+  static Extents row_extents(hsize_t rows, hsize_t width) {
+    Extents e(1, rows);
+    if (width != 1) e.emplace_back(width);
+    return e;
+  }
 
   // Rows [start, start + rows) of `width` elements converted to mtype; the type
   // must convert to mtype and the selection must lie in the dataset, both checked
@@ -67,7 +74,7 @@ class Dataset {
   // Every element of a dataset of extents [rows] (width 1) or [rows, width].
   template <class T>
   std::vector<T> read_all(hid_t mtype, hsize_t rows, hsize_t width = 1) const {
-    expect(width == 1 ? Extents{rows} : Extents{rows, width});
+    expect(row_extents(rows, width));
     return read<T>(mtype, 0, rows, width);
   }
   // Every element of a one-dimensional variable-length string dataset.
@@ -78,7 +85,7 @@ class Dataset {
   // T = char* reads variable-length strings (reclaimed after each call).
   template <class T, class Fn>
   void scan(hid_t mtype, hsize_t rows, hsize_t width, Fn&& fn, hsize_t block = kBlockRows) const {
-    expect(width == 1 ? Extents{rows} : Extents{rows, width});
+    expect(row_extents(rows, width));
     if (rows > 0) check_convertible(mtype);
     for (hsize_t start = 0; start < rows; start += block) {
       const hsize_t n = std::min(block, rows - start);
