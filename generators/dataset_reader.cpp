@@ -5,17 +5,16 @@
 #include <map>
 
 #include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
 
-using hdf5::Handle;
 using hdf5::QuietHdf5;
-using hdf5::read_rows;
 
 struct DatasetReader::Impl {
   std::string file;
-  Handle fid;
+  hdf5::CheckedFile h5;
   hdf5::Types types;
   DatasetHeader header;
   std::string schema_version;
@@ -25,62 +24,54 @@ struct DatasetReader::Impl {
   std::vector<double> time;
   std::vector<std::uint64_t> node_offset, link_offset;
   std::vector<std::uint32_t> node_count, link_count;
-  std::map<std::string, Handle> dsets;
+  std::map<std::string, hdf5::Dataset> dsets;
   hsize_t S = 0, L = 0, P = 0, I = 0, K = 0;
 
-  explicit Impl(std::string path) : file(std::move(path)), types(file) {}
+  explicit Impl(std::string path) : file(std::move(path)), h5(file), types(file) {}
 
-  [[noreturn]] void fail(const std::string& what) const { throw meshkit::InputError(file, "", what); }
+  [[noreturn]] void fail(const std::string& object, const std::string& what) const { h5.fail(object, what); }
 
-  hid_t dset(const std::string& name) {
+  // Datasets stay open: frames() reads every column again for each block of frames.
+  const hdf5::Dataset& dset(const std::string& name) {
     auto it = dsets.find(name);
-    if (it != dsets.end()) return it->second.get();
-    Handle d(H5Dopen2(fid.get(), name.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) fail(name + ": missing or unreadable (" + hdf5::hdf5_error_text() + ")");
-    return dsets.emplace(name, std::move(d)).first->second.get();
+    if (it == dsets.end()) it = dsets.emplace(name, h5.dataset(name)).first;
+    return it->second;
   }
-  hsize_t rows(const std::string& name) {
-    const auto dims = hdf5::dataset_dims(dset(name), name);
-    if (dims.empty()) fail(name + ": not an array");
-    return dims[0];
-  }
+  hsize_t rows(const std::string& name) { return dset(name).rows(); }
   template <class T>
   std::vector<T> read(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width = 1) {
-    return read_rows<T>(dset(name), name, mtype, start, n, width);
+    return dset(name).read<T>(mtype, start, n, width);
   }
-  std::string str_attr(const std::string& name) { return hdf5::read_str_attr(fid.get(), "/", name); }
+  std::string str_attr(const std::string& name) { return h5.attr<std::string>("/", name); }
   nlohmann::json json_attr(const std::string& name) {
     const std::string text = str_attr(name);
-    if (!nlohmann::json::accept(text)) fail("attribute " + name + ": not valid JSON text");
+    if (!nlohmann::json::accept(text)) fail("attribute " + name, "not valid JSON text");
     return nlohmann::json::parse(text);
   }
 
   void open() {
-    fid = Handle(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!fid.valid()) fail("cannot open as HDF5 (" + hdf5::hdf5_error_text() + ")");
-    if (!hdf5::has_attr(fid.get(), "format") || str_attr("format") != kDatasetFormat)
-      fail(std::string("not a raysweep channel dataset (format is not ") + kDatasetFormat + ")");
+    h5.open();
+    if (!h5.has_attr("/", "format") || str_attr("format") != kDatasetFormat)
+      fail("attribute format", std::string("not a raysweep channel dataset (format is not ") + kDatasetFormat + ")");
     schema_version = str_attr("schema_version");
     int supported = 0;
     std::sscanf(kDatasetSchemaVersion, "%d", &supported);
     if (hdf5::major_version(schema_version) != supported)
-      fail("schema_version " + schema_version + " is not " + std::to_string(supported) + ".x");
-    complete = hdf5::has_attr(fid.get(), "complete");
+      fail("attribute schema_version", schema_version + " is not " + std::to_string(supported) + ".x");
+    complete = h5.has_attr("/", "complete");
     header.raysweep_version = str_attr("raysweep_version");
     header.git_hash = str_attr("git_hash");
     header.config = json_attr("config");
     header.inputs = json_attr("inputs");
     header.provenance = json_attr("provenance");
-    header.seed = hdf5::read_num_attr<std::uint64_t>(fid.get(), "/", "seed", H5T_NATIVE_UINT64);
-    header.carrier_hz = hdf5::read_num_attr<double>(fid.get(), "/", "carrier_hz", H5T_NATIVE_DOUBLE);
-    header.bandwidth_hz = hdf5::read_num_attr<double>(fid.get(), "/", "bandwidth_hz", H5T_NATIVE_DOUBLE);
-    if (hdf5::has_attr(fid.get(), "shard")) header.shard = str_attr("shard");
-    if (hdf5::has_link(fid.get(), "cfr")) {
-      Handle g(H5Gopen2(fid.get(), "cfr", H5P_DEFAULT), H5Gclose);
-      if (!g.valid()) fail("/cfr: not a group");
-      header.cfr_subcarriers = hdf5::read_num_attr<std::uint32_t>(g.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
-      header.cfr_subcarrier_spacing_hz =
-          hdf5::read_num_attr<double>(g.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
+    header.seed = h5.attr<std::uint64_t>("/", "seed");
+    header.carrier_hz = h5.attr<double>("/", "carrier_hz");
+    header.bandwidth_hz = h5.attr<double>("/", "bandwidth_hz");
+    if (h5.has_attr("/", "shard")) header.shard = str_attr("shard");
+    if (h5.exists("/cfr")) {
+      h5.group("/cfr");
+      header.cfr_subcarriers = h5.attr<std::uint32_t>("/cfr", "subcarriers");
+      header.cfr_subcarrier_spacing_hz = h5.attr<double>("/cfr", "subcarrier_spacing_hz");
       K = header.cfr_subcarriers;
     }
 
@@ -97,24 +88,24 @@ struct DatasetReader::Impl {
     std::uint64_t s = 0, l = 0;
     for (hsize_t f = 0; f < F; ++f) {
       if (node_offset[f] != s || link_offset[f] != l)
-        fail("/frames: offsets of frame " + std::to_string(f) + " are not the running sums of the counts");
+        fail("/frames", "offsets of frame " + std::to_string(f) + " are not the running sums of the counts");
       s += node_count[f];
       l += link_count[f];
     }
-    if (s != S || l != L) fail("/frames: counts do not add up to the /node_states and /links sizes");
+    if (s != S || l != L) fail("/frames", "counts do not add up to the /node_states and /links sizes");
 
     if (complete) {
       const hsize_t N = rows("/nodes/id");
-      const auto ids = hdf5::read_strings(dset("/nodes/id"), "/nodes/id");
-      const auto vclass = hdf5::read_strings(dset("/nodes/vclass"), "/nodes/vclass");
-      const auto vtype = hdf5::read_strings(dset("/nodes/vtype"), "/nodes/vtype");
+      const auto ids = dset("/nodes/id").strings();
+      const auto vclass = dset("/nodes/vclass").strings();
+      const auto vtype = dset("/nodes/vtype").strings();
       const auto kind = read<std::uint8_t>("/nodes/kind", H5T_NATIVE_UINT8, 0, N);
       const auto dims = read<float>("/nodes/dimensions", H5T_NATIVE_FLOAT, 0, N, 3);
-      if (vclass.size() != N || vtype.size() != N) fail("/nodes: tables of different lengths");
+      if (vclass.size() != N || vtype.size() != N) fail("/nodes", "tables of different lengths");
       for (hsize_t i = 0; i < N; ++i)
         nodes.push_back({ids[i], static_cast<NodeKind>(kind[i]), vclass[i], vtype[i], dims[3 * i], dims[3 * i + 1],
                          dims[3 * i + 2]});
-      objects = hdf5::read_strings(dset("/objects/name"), "/objects/name");
+      objects = dset("/objects/name").strings();
     }
   }
 
@@ -126,7 +117,7 @@ struct DatasetReader::Impl {
   }
 
   FrameRows rows_at(std::uint64_t f) {
-    if (f > time.size()) fail("frame " + std::to_string(f) + " beyond its " + std::to_string(time.size()) + " frames");
+    if (f > time.size()) fail("", "frame " + std::to_string(f) + " beyond its " + std::to_string(time.size()) + " frames");
     FrameRows r;
     r.states = f < time.size() ? node_offset[f] : S;
     r.links = f < time.size() ? link_offset[f] : L;
@@ -137,10 +128,10 @@ struct DatasetReader::Impl {
 
   std::vector<FrameRecord> frames(std::uint64_t first, std::uint64_t count) {
     if (first + count > time.size())
-      fail("frames " + std::to_string(first) + "+" + std::to_string(count) + " beyond its " +
+      fail("", "frames " + std::to_string(first) + "+" + std::to_string(count) + " beyond its " +
            std::to_string(time.size()) + " frames");
     const FrameRows a = rows_at(first), b = rows_at(first + count);
-    if (b.paths < a.paths || b.interactions < a.interactions) fail("/links, /paths: offsets decrease");
+    if (b.paths < a.paths || b.interactions < a.interactions) fail("/links, /paths", "offsets decrease");
     const hsize_t ns = b.states - a.states, nl = b.links - a.links, np = b.paths - a.paths,
                   ni = b.interactions - a.interactions;
 
@@ -193,23 +184,23 @@ struct DatasetReader::Impl {
                             s_vel[3 * s + 2], s_head[s]});
       const std::size_t l0 = l;
       for (std::uint32_t j = 0; j < link_count[f]; ++j, ++l) {
-        if (l_po[l] != po) fail("/links/path_offset: row " + std::to_string(a.links + l) + " is not the running sum");
+        if (l_po[l] != po) fail("/links/path_offset", "row " + std::to_string(a.links + l) + " is not the running sum");
         fr.links.push_back({l_tx[l], l_rx[l], l_los[l], l_flags[l], l_block[l], l_gc[l], l_gi[l], l_fd[l], l_rms[l],
                             l_pc[l], l_below[l], l_losf[l], l_clear[l], l_vloss[l]});
         for (std::uint32_t q = 0; q < l_pc[l]; ++q, ++p, ++po) {
           if (p >= np || p_io[p] != io)
-            fail("/paths/interaction_offset: row " + std::to_string(a.paths + p) + " is not the running sum");
+            fail("/paths/interaction_offset", "row " + std::to_string(a.paths + p) + " is not the running sum");
           fr.paths.push_back({p_a[p], p_tau[p], p_aod[2 * p], p_aod[2 * p + 1], p_aoa[2 * p], p_aoa[2 * p + 1], p_dop[p],
                               p_ic[p]});
           for (std::uint8_t m = 0; m < p_ic[p]; ++m, ++i, ++io) {
-            if (i >= ni) fail("/interactions: fewer rows than the paths' interaction counts");
+            if (i >= ni) fail("/interactions", "fewer rows than the paths' interaction counts");
             fr.interactions.push_back({i_type[i], i_obj[i], i_pt[3 * i], i_pt[3 * i + 1], i_pt[3 * i + 2]});
           }
         }
       }
       if (K > 0) fr.cfr.assign(cfr.begin() + static_cast<std::ptrdiff_t>(l0 * K), cfr.begin() + static_cast<std::ptrdiff_t>(l * K));
     }
-    if (p != np || i != ni) fail("/paths, /interactions: rows left over after the frames' links and paths");
+    if (p != np || i != ni) fail("/paths, /interactions", "rows left over after the frames' links and paths");
     return out;
   }
 };
@@ -217,11 +208,7 @@ struct DatasetReader::Impl {
 DatasetReader::DatasetReader(const std::filesystem::path& path) {
   QuietHdf5 quiet;
   impl_ = std::make_unique<Impl>(path.string());
-  try {
-    impl_->open();
-  } catch (const hdf5::ReadError& e) {
-    throw meshkit::InputError(path.string(), "", e.what());
-  }
+  impl_->open();
 }
 
 DatasetReader::~DatasetReader() = default;
@@ -236,20 +223,12 @@ const std::vector<std::string>& DatasetReader::objects() const { return impl_->o
 
 std::vector<FrameRecord> DatasetReader::frames(std::uint64_t first, std::uint64_t count) {
   QuietHdf5 quiet;
-  try {
-    return impl_->frames(first, count);
-  } catch (const hdf5::ReadError& e) {
-    throw meshkit::InputError(impl_->file, "", e.what());
-  }
+  return impl_->frames(first, count);
 }
 
 FrameRows DatasetReader::rows_at(std::uint64_t frame) {
   QuietHdf5 quiet;
-  try {
-    return impl_->rows_at(frame);
-  } catch (const hdf5::ReadError& e) {
-    throw meshkit::InputError(impl_->file, "", e.what());
-  }
+  return impl_->rows_at(frame);
 }
 
 }  // namespace raysweep::generators

@@ -419,20 +419,23 @@ void read_fail(const std::string& object, const std::string& what) {
   throw ReadError(msg);
 }
 
+std::string describe_type(hid_t type) {
+  const H5T_class_t cls = H5Tget_class(type);
+  const std::size_t size = H5Tget_size(type);
+  switch (cls) {
+    case H5T_INTEGER:
+      return (H5Tget_sign(type) == H5T_SGN_NONE ? "unsigned " : "signed ") + std::to_string(8 * size) + "-bit integer";
+    case H5T_FLOAT: return std::to_string(8 * size) + "-bit float";
+    case H5T_STRING:
+      return H5Tis_variable_str(type) > 0 ? "variable-length string" : std::to_string(size) + "-byte fixed string";
+    case H5T_COMPOUND: return "compound of " + std::to_string(H5Tget_nmembers(type)) + " members";
+    default: return "type class " + std::to_string(static_cast<int>(cls));
+  }
+}
+
 std::string type_mismatch(hid_t type, const std::string& dtype) {
   const H5T_class_t cls = H5Tget_class(type);
   const std::size_t size = H5Tget_size(type);
-  auto describe = [&]() -> std::string {
-    switch (cls) {
-      case H5T_INTEGER:
-        return (H5Tget_sign(type) == H5T_SGN_NONE ? "unsigned " : "signed ") + std::to_string(8 * size) + "-bit integer";
-      case H5T_FLOAT: return std::to_string(8 * size) + "-bit float";
-      case H5T_STRING:
-        return H5Tis_variable_str(type) > 0 ? "variable-length string" : std::to_string(size) + "-byte fixed string";
-      case H5T_COMPOUND: return "compound of " + std::to_string(H5Tget_nmembers(type)) + " members";
-      default: return "type class " + std::to_string(static_cast<int>(cls));
-    }
-  };
   bool ok = false;
   if (dtype.size() >= 2 && dtype[0] == 'u' && std::isdigit(static_cast<unsigned char>(dtype[1]))) {
     ok = cls == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_NONE && 8 * size == std::stoul(dtype.substr(1));
@@ -452,7 +455,7 @@ std::string type_mismatch(hid_t type, const std::string& dtype) {
     }
     if (cls == H5T_COMPOUND && !ok) return "compound other than {r: f32, i: f32}";
   }
-  return ok ? std::string() : describe();
+  return ok ? std::string() : describe_type(type);
 }
 
 bool has_link(hid_t loc, const std::string& name) {
@@ -470,31 +473,45 @@ bool has_attr(hid_t loc, const std::string& name) {
 std::string read_str_attr(hid_t loc, const std::string& where, const std::string& name) {
   Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
   if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
-  Handle ftype(H5Aget_type(attr.get()), H5Tclose);
-  if (!ftype.valid()) read_fail(where + "attribute " + name, "cannot get type");
-  if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(where + "attribute " + name, "not a string");
+  return read_str_attr(attr.get(), where + "attribute " + name);
+}
+
+std::string read_str_attr(hid_t attr, const std::string& label) {
+  Handle ftype(H5Aget_type(attr), H5Tclose);
+  if (!ftype.valid()) read_fail(label, "cannot get type");
+  if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(label, "not a string");
   // One string: H5Aread writes every element, so an array attribute overflowed
   // the one-string buffer below (ASan in tests/fuzz/fuzz_sinr_h5, fuzz_ns3_table_h5).
-  Handle space(H5Aget_space(attr.get()), H5Sclose);
-  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1)
-    read_fail(where + "attribute " + name, "not a single value");
+  Handle space(H5Aget_space(attr), H5Sclose);
+  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1) read_fail(label, "not a single value");
   Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
   if (H5Tis_variable_str(ftype.get()) > 0) {
     if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
         H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
-      read_fail(where + "attribute " + name, "cannot make string type");
+      read_fail(label, "cannot make string type");
     char* p = nullptr;
-    if (H5Aread(attr.get(), mtype.get(), &p) < 0) read_fail(where + "attribute " + name, "cannot read");
+    if (H5Aread(attr, mtype.get(), &p) < 0) read_fail(label, "cannot read");
     std::string s = p ? p : "";
     if (p) H5free_memory(p);
     return s;
   }
   const std::size_t size = H5Tget_size(ftype.get());
   std::string s(size + 1, '\0');
-  if (!mtype.valid() || H5Tset_size(mtype.get(), size + 1) < 0 || H5Aread(attr.get(), mtype.get(), s.data()) < 0)
-    read_fail(where + "attribute " + name, "cannot read");
+  if (!mtype.valid() || H5Tset_size(mtype.get(), size + 1) < 0 || H5Aread(attr, mtype.get(), s.data()) < 0)
+    read_fail(label, "cannot read");
   s.resize(std::strlen(s.c_str()));
   return s;
+}
+
+void read_num_attr(hid_t attr, const std::string& label, hid_t mtype, void* out) {
+  Handle space(H5Aget_space(attr), H5Sclose);
+  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1) read_fail(label, "not a single value");
+  // A type HDF5 cannot convert (a string, a compound) fails H5Aread as well; this names it.
+  Handle ftype(H5Aget_type(attr), H5Tclose);
+  H5T_cdata_t* cdata = nullptr;
+  if (!ftype.valid() || !H5Tfind(ftype.get(), mtype, &cdata))
+    read_fail(label, ftype.valid() ? "type is " + describe_type(ftype.get()) + ", not a number" : "cannot get type");
+  if (H5Aread(attr, mtype, out) < 0) read_fail(label, "cannot read");
 }
 
 std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name) {
@@ -505,6 +522,19 @@ std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name) {
   std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
   if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) read_fail(name, "cannot get shape");
   return dims;
+}
+
+int check_selection(hid_t dset, const std::string& name, hsize_t start, hsize_t rows, hsize_t width) {
+  const auto dims = dataset_dims(dset, name);
+  const int rank = static_cast<int>(dims.size());
+  if (rank < 1 || rank > 2) read_fail(name, "not a one- or two-dimensional dataset");
+  if (start > dims[0] || rows > dims[0] - start)
+    read_fail(name, "rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1) + " beyond its " +
+                        std::to_string(dims[0]) + " rows");
+  if ((rank == 1 && width != 1) || (rank == 2 && width > dims[1]))
+    read_fail(name, std::to_string(width) + " values a row asked of a dataset of " +
+                        (rank == 2 ? std::to_string(dims[1]) : std::string("1")) + " a row");
+  return rank;
 }
 
 std::vector<std::uint64_t> read_u64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {

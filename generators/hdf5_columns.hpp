@@ -6,7 +6,8 @@
 // shuffle + deflate columns filled a chunk at a time, one-shot tables, attributes,
 // and a file without object time stamps (the same calls give the same bytes) whose
 // `complete` attribute is written last. Reading: typed row and attribute readers
-// that throw ReadError naming the dataset or attribute.
+// that throw ReadError naming the dataset or attribute; the readers of the file
+// formats reach them through hdf5_file.hpp's CheckedFile, which names the file too.
 #pragma once
 
 #include <hdf5.h>
@@ -178,26 +179,35 @@ struct ReadError : std::runtime_error {
 
 // "" when the HDF5 type matches the schema dtype, else a description of the type.
 std::string type_mismatch(hid_t type, const std::string& dtype);
+// "unsigned 8-bit integer", "64-bit float", "variable-length string", ...
+std::string describe_type(hid_t type);
 
 bool has_link(hid_t loc, const std::string& name);
 bool has_attr(hid_t loc, const std::string& name);
 
 // Scalar attribute readers; `where` prefixes messages ("/" or "/cfr ").
 std::string read_str_attr(hid_t loc, const std::string& where, const std::string& name);
+// The same of an open attribute; messages start with `label`. A string needs a
+// string attribute; a number, a type HDF5 converts to mtype.
+std::string read_str_attr(hid_t attr, const std::string& label);
+void read_num_attr(hid_t attr, const std::string& label, hid_t mtype, void* out);
 
 template <class T>
 T read_num_attr(hid_t loc, const std::string& where, const std::string& name, hid_t mtype) {
   Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
   if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
-  Handle space(H5Aget_space(attr.get()), H5Sclose);
-  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1)
-    read_fail(where + "attribute " + name, "not a single value");
   T v{};
-  if (H5Aread(attr.get(), mtype, &v) < 0) read_fail(where + "attribute " + name, "cannot read");
+  read_num_attr(attr.get(), where + "attribute " + name, mtype, &v);
   return v;
 }
 
 std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name);
+
+// A ReadError naming the dataset unless rows [start, start + rows) of `width`
+// elements lie in it; returns its rank. A row count or width taken from another
+// (bad) dataset or attribute asked for 219 GB before this was checked first
+// (tests/fuzz/fuzz_dataset_h5: /cfr's subcarriers).
+int check_selection(hid_t dset, const std::string& name, hsize_t start, hsize_t rows, hsize_t width);
 
 // Reads rows [start, start + rows) of a dataset (width elements per row) converted
 // to the memory type of T.
@@ -205,18 +215,7 @@ template <class T>
 std::vector<T> read_rows(hid_t dset, const std::string& name, hid_t mtype, hsize_t start, hsize_t rows,
                          hsize_t width = 1) {
   if (rows == 0) return std::vector<T>();
-  const auto dims = dataset_dims(dset, name);
-  const int rank = static_cast<int>(dims.size());
-  // The selection must lie in the dataset before anything is allocated: a
-  // row count or width taken from another (bad) dataset or attribute asked
-  // for 219 GB here (tests/fuzz/fuzz_dataset_h5: /cfr's subcarriers).
-  if (rank < 1 || rank > 2) read_fail(name, "not a one- or two-dimensional dataset");
-  if (start > dims[0] || rows > dims[0] - start)
-    read_fail(name, "rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1) + " beyond its " +
-                        std::to_string(dims[0]) + " rows");
-  if ((rank == 1 && width != 1) || (rank == 2 && width > dims[1]))
-    read_fail(name, std::to_string(width) + " values a row asked of a dataset of " +
-                        (rank == 2 ? std::to_string(dims[1]) : std::string("1")) + " a row");
+  const int rank = check_selection(dset, name, start, rows, width);
   std::vector<T> out(static_cast<std::size_t>(rows * width));
   Handle fspace(H5Dget_space(dset), H5Sclose);
   const hsize_t s[2] = {start, 0};

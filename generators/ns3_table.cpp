@@ -14,6 +14,7 @@
 
 #include "generators/dataset_schema.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
@@ -194,127 +195,48 @@ std::uint64_t Ns3TableWriter::pairs() const { return impl_->pair_rows; }
 // ---------------------------------------------------------------------------
 // Reader.
 
-namespace {
-
-class TableFile {
- public:
-  explicit TableFile(std::string path) : path_(std::move(path)) {}
-
-  [[noreturn]] void fail(const std::string& element, const std::string& what) const {
-    const std::string h5 = hdf5::hdf5_error_text();
-    throw meshkit::InputError(path_, element, what + (h5.empty() ? "" : " (" + h5 + ")"));
-  }
-
-  void open() {
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path_, ec)) fail("", "no such file (or not a regular file)");
-    if (H5Fis_hdf5(path_.c_str()) <= 0) fail("", "not an HDF5 file (or unreadable)");
-    fid_ = Handle(H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!fid_.valid()) fail("", "cannot open as HDF5 (truncated or corrupt?)");
-  }
-
-  // The readers of hdf5_columns throw ReadError naming the dataset or attribute.
-  template <class F>
-  auto guard(F&& f) const {
-    try {
-      return f();
-    } catch (const hdf5::ReadError& e) {
-      throw meshkit::InputError(path_, "", e.what());
-    }
-  }
-
-  std::string str_attr(const std::string& name) const {
-    if (!hdf5::has_attr(fid_.get(), name)) fail("attribute " + name, "missing");
-    return guard([&] { return hdf5::read_str_attr(fid_.get(), "/", name); });
-  }
-  template <class T>
-  T num_attr(hid_t loc, const std::string& where, const std::string& name, hid_t mtype) const {
-    if (!hdf5::has_attr(loc, name)) fail(where + "attribute " + name, "missing");
-    return guard([&] { return hdf5::read_num_attr<T>(loc, where, name, mtype); });
-  }
-
-  Handle dataset(const std::string& p) const {
-    const std::string group = p.substr(0, p.find('/', 1));
-    if (!hdf5::has_link(fid_.get(), group) || !hdf5::has_link(fid_.get(), p)) fail(p, "missing dataset");
-    Handle d(H5Dopen2(fid_.get(), p.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) fail(p, "cannot open dataset");
-    return d;
-  }
-
-  // Every element of a [rows] or [rows, width] dataset, which must have that shape.
-  template <class T>
-  std::vector<T> all(const std::string& p, hid_t mtype, hsize_t rows, hsize_t width = 1) const {
-    Handle d = dataset(p);
-    const auto dims = guard([&] { return hdf5::dataset_dims(d.get(), p); });
-    const std::vector<hsize_t> expect = width == 1 ? std::vector<hsize_t>{rows} : std::vector<hsize_t>{rows, width};
-    if (dims != expect)
-      fail(p, "shape is not [" + std::to_string(rows) + (width == 1 ? "" : ", " + std::to_string(width)) +
-                  "] (inconsistent lengths)");
-    return guard([&] { return hdf5::read_rows<T>(d.get(), p, mtype, 0, rows, width); });
-  }
-
-  hsize_t rows(const std::string& p) const {
-    Handle d = dataset(p);
-    const auto dims = guard([&] { return hdf5::dataset_dims(d.get(), p); });
-    if (dims.empty()) fail(p, "not an array");
-    return dims[0];
-  }
-
-  std::vector<std::string> strings(const std::string& p) const {
-    Handle d = dataset(p);
-    return guard([&] { return hdf5::read_strings(d.get(), p); });
-  }
-
-  hid_t fid() const { return fid_.get(); }
-
- private:
-  std::string path_;
-  Handle fid_;
-};
-
-}  // namespace
-
 Ns3Table Ns3Table::load(const std::string& path) {
   QuietHdf5 quiet;
-  TableFile r(path);
+  hdf5::CheckedFile r(path);
   r.open();
-  if (const std::string f = r.str_attr("format"); f != kNs3TableFormat)
+  if (const std::string f = r.attr<std::string>("/", "format"); f != kNs3TableFormat)
     r.fail("attribute format", "is \"" + f + "\": not a " + kNs3TableFormat + " file");
-  const std::string version = r.str_attr("schema_version");
+  const std::string version = r.attr<std::string>("/", "schema_version");
   const auto major = hdf5::major_version(version);
   if (!major || major != hdf5::major_version(kNs3TableSchemaVersion))
     r.fail("attribute schema_version", "version \"" + version + "\" is not supported (this program reads " +
                                            kNs3TableSchemaVersion + ")");
-  if (!hdf5::has_attr(r.fid(), "complete") || r.num_attr<std::uint64_t>(r.fid(), "/", "complete", H5T_NATIVE_UINT64) != 1)
+  if (r.attr_if<std::uint64_t>("/", "complete") != std::uint64_t{1})
     r.fail("attribute complete", "incomplete file: its writer stopped before finishing it");
 
   Ns3Table t;
   t.path_ = path;
-  t.carrier_hz_ = r.num_attr<double>(r.fid(), "/", "carrier_hz", H5T_NATIVE_DOUBLE);
-  t.bandwidth_hz_ = r.num_attr<double>(r.fid(), "/", "bandwidth_hz", H5T_NATIVE_DOUBLE);
-  const auto source = r.num_attr<std::uint64_t>(r.fid(), "/", "gain_source", H5T_NATIVE_UINT64);
+  t.carrier_hz_ = r.attr<double>("/", "carrier_hz");
+  t.bandwidth_hz_ = r.attr<double>("/", "bandwidth_hz");
+  const auto source = r.attr<std::uint64_t>("/", "gain_source");
   if (source > 1) r.fail("attribute gain_source", "unknown code " + std::to_string(source));
   t.gain_source_ = static_cast<GainSource>(source);
-  t.provenance_ = nlohmann::json::parse(r.str_attr("provenance"), nullptr, false);
+  t.provenance_ = nlohmann::json::parse(r.attr<std::string>("/", "provenance"), nullptr, false);
 
-  t.ids_ = r.strings("/nodes/id");
+  t.ids_ = r.dataset("/nodes/id").strings();
   const std::uint64_t n = t.ids_.size();
   if (n > 65535) r.fail("/nodes/id", std::to_string(n) + " nodes: more than the 65535 this reader supports");
-  for (auto k : r.all<std::uint8_t>("/nodes/kind", H5T_NATIVE_UINT8, n)) {
+  for (auto k : r.dataset("/nodes/kind").read_all<std::uint8_t>(H5T_NATIVE_UINT8, n)) {
     if (k > 1) r.fail("/nodes/kind", "unknown node kind " + std::to_string(k));
     t.kinds_.push_back(static_cast<NodeKind>(k));
   }
 
-  const hsize_t frames = r.rows("/frames/time_s");
-  t.time_ = r.all<double>("/frames/time_s", H5T_NATIVE_DOUBLE, frames);
+  const hdf5::Dataset time = r.dataset("/frames/time_s");
+  const hsize_t frames = time.rows();
+  t.time_ = time.read_all<double>(H5T_NATIVE_DOUBLE, frames);
   for (std::size_t f = 0; f < frames; ++f)
     if (!std::isfinite(t.time_[f]) || (f > 0 && t.time_[f] <= t.time_[f - 1]))
       r.fail("/frames/time_s", "row " + std::to_string(f) + ": not finite or not after the previous frame's time");
   t.step_ = median_step(t.time_);
   // offsets[f] must be the running sum of the counts; the sum closes the table.
   auto csr = [&](const std::string& offset, const std::string& count, std::vector<std::uint64_t>& out) {
-    out = r.all<std::uint64_t>(offset, H5T_NATIVE_UINT64, frames);
-    const auto counts = r.all<std::uint64_t>(count, H5T_NATIVE_UINT64, frames);
+    out = r.dataset(offset).read_all<std::uint64_t>(H5T_NATIVE_UINT64, frames);
+    const auto counts = r.dataset(count).read_all<std::uint64_t>(H5T_NATIVE_UINT64, frames);
     std::uint64_t sum = 0;
     for (std::size_t f = 0; f < frames; sum += counts[f++])
       if (out[f] != sum)
@@ -326,9 +248,9 @@ Ns3Table Ns3Table::load(const std::string& path) {
   csr("/frames/pair_offset", "/frames/pair_count", t.pair_offset_);
 
   const std::uint64_t s = t.state_offset_.back();
-  const auto node = r.all<std::uint32_t>("/node_states/node", H5T_NATIVE_UINT32, s);
-  const auto pos = r.all<double>("/node_states/position", H5T_NATIVE_DOUBLE, s, 3);
-  const auto vel = r.all<float>("/node_states/velocity", H5T_NATIVE_FLOAT, s, 3);
+  const auto node = r.dataset("/node_states/node").read_all<std::uint32_t>(H5T_NATIVE_UINT32, s);
+  const auto pos = r.dataset("/node_states/position").read_all<double>(H5T_NATIVE_DOUBLE, s, 3);
+  const auto vel = r.dataset("/node_states/velocity").read_all<float>(H5T_NATIVE_FLOAT, s, 3);
   t.states_.resize(s);
   for (std::size_t i = 0; i < s; ++i) {
     NodeState& st = t.states_[i];
@@ -347,10 +269,10 @@ Ns3Table Ns3Table::load(const std::string& path) {
     }
 
   const std::uint64_t p = t.pair_offset_.back();
-  const auto a = r.all<std::uint32_t>("/pairs/a", H5T_NATIVE_UINT32, p);
-  const auto b = r.all<std::uint32_t>("/pairs/b", H5T_NATIVE_UINT32, p);
-  t.gain_ = r.all<float>("/pairs/gain_db", H5T_NATIVE_FLOAT, p);
-  t.los_ = r.all<std::uint8_t>("/pairs/los_class", H5T_NATIVE_UINT8, p);
+  const auto a = r.dataset("/pairs/a").read_all<std::uint32_t>(H5T_NATIVE_UINT32, p);
+  const auto b = r.dataset("/pairs/b").read_all<std::uint32_t>(H5T_NATIVE_UINT32, p);
+  t.gain_ = r.dataset("/pairs/gain_db").read_all<float>(H5T_NATIVE_FLOAT, p);
+  t.los_ = r.dataset("/pairs/los_class").read_all<std::uint8_t>(H5T_NATIVE_UINT8, p);
   t.key_.resize(p);
   for (std::size_t f = 0; f < frames; ++f)
     for (std::uint64_t i = t.pair_offset_[f]; i < t.pair_offset_[f + 1]; ++i) {
@@ -365,15 +287,13 @@ Ns3Table Ns3Table::load(const std::string& path) {
       if (std::isnan(t.gain_[i])) r.fail("/pairs/gain_db", row + "NaN");
     }
 
-  if (hdf5::has_link(r.fid(), "spectrum")) {
-    Handle g(H5Gopen2(r.fid(), "spectrum", H5P_DEFAULT), H5Gclose);
-    if (!g.valid()) r.fail("/spectrum", "not a group");
-    const auto count = r.num_attr<std::uint64_t>(g.get(), "/spectrum ", "band_count", H5T_NATIVE_UINT64);
-    t.bands_.subcarriers_per_band =
-        static_cast<std::uint32_t>(r.num_attr<std::uint64_t>(g.get(), "/spectrum ", "subcarriers_per_band", H5T_NATIVE_UINT64));
-    t.bands_.band_width_hz = r.num_attr<double>(g.get(), "/spectrum ", "band_width_hz", H5T_NATIVE_DOUBLE);
-    t.bands_.center_hz = r.all<double>("/spectrum/center_hz", H5T_NATIVE_DOUBLE, count);
-    if (count) t.band_gain_ = r.all<float>("/spectrum/gain_db", H5T_NATIVE_FLOAT, p, count);
+  if (r.exists("/spectrum")) {
+    r.group("/spectrum");
+    const auto count = r.attr<std::uint64_t>("/spectrum", "band_count");
+    t.bands_.subcarriers_per_band = static_cast<std::uint32_t>(r.attr<std::uint64_t>("/spectrum", "subcarriers_per_band"));
+    t.bands_.band_width_hz = r.attr<double>("/spectrum", "band_width_hz");
+    t.bands_.center_hz = r.dataset("/spectrum/center_hz").read_all<double>(H5T_NATIVE_DOUBLE, count);
+    if (count) t.band_gain_ = r.dataset("/spectrum/gain_db").read_all<float>(H5T_NATIVE_FLOAT, p, count);
   }
   return t;
 }

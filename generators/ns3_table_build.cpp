@@ -6,9 +6,11 @@
 #include <cmath>
 #include <complex>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 #include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "meshkit/errors.hpp"
@@ -21,43 +23,23 @@ float power_db(double mean_power) {
   return mean_power > 0 ? static_cast<float>(10.0 * std::log10(mean_power)) : -std::numeric_limits<float>::infinity();
 }
 
-// Runs f; the hdf5 readers' ReadError (naming the dataset) becomes an InputError naming the file too.
-template <class F>
-auto guard(const std::string& path, F&& f) {
-  try {
-    return f();
-  } catch (const hdf5::ReadError& e) {
-    throw meshkit::InputError(path, "", e.what());
-  }
-}
-
 // The /cfr group of a channel dataset, when it has one.
 class CfrReader {
  public:
-  explicit CfrReader(const std::string& path) : path_(path), types_(path) {
+  explicit CfrReader(const std::string& path) : file_(path), types_(path) {
     hdf5::QuietHdf5 quiet;
-    fid_ = hdf5::Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!fid_.valid()) throw meshkit::InputError(path, "", "cannot open as HDF5");
-    if (!hdf5::has_link(fid_.get(), "cfr")) return;
-    guard(path_, [&] {
-      group_ = hdf5::Handle(H5Gopen2(fid_.get(), "cfr", H5P_DEFAULT), H5Gclose);
-      if (!group_.valid()) hdf5::read_fail("/cfr", "not a group");
-      subcarriers_ = hdf5::read_num_attr<std::uint32_t>(group_.get(), "/cfr ", "subcarriers", H5T_NATIVE_UINT32);
-      spacing_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "subcarrier_spacing_hz", H5T_NATIVE_DOUBLE);
-      carrier_hz_ = hdf5::read_num_attr<double>(group_.get(), "/cfr ", "carrier_hz", H5T_NATIVE_DOUBLE);
-      // The band centres derive from these (the table writer needs them increasing).
-      if (!(std::isfinite(spacing_hz_) && spacing_hz_ > 0))
-        hdf5::read_fail("/cfr attribute subcarrier_spacing_hz", "is not a positive number");
-      if (!(std::isfinite(carrier_hz_) && carrier_hz_ > 0))
-        hdf5::read_fail("/cfr attribute carrier_hz", "is not a positive number");
-      h_ = hdf5::Handle(H5Dopen2(group_.get(), "h", H5P_DEFAULT), H5Dclose);
-      if (!h_.valid()) hdf5::read_fail("/cfr/h", "cannot open dataset");
-      const auto dims = hdf5::dataset_dims(h_.get(), "/cfr/h");
-      if (dims.size() != 2 || dims[1] != subcarriers_)
-        hdf5::read_fail("/cfr/h", "shape is not [links, " + std::to_string(subcarriers_) + "]");
-      rows_ = dims[0];
-      return 0;
-    });
+    file_.open();
+    if (!file_.exists("/cfr")) return;
+    file_.group("/cfr");
+    subcarriers_ = file_.attr<std::uint32_t>("/cfr", "subcarriers");
+    spacing_hz_ = file_.attr<double>("/cfr", "subcarrier_spacing_hz");
+    carrier_hz_ = file_.attr<double>("/cfr", "carrier_hz");
+    // The band centres derive from these (the table writer needs them increasing).
+    if (!(std::isfinite(spacing_hz_) && spacing_hz_ > 0))
+      file_.fail("/cfr attribute subcarrier_spacing_hz", "is not a positive number");
+    if (!(std::isfinite(carrier_hz_) && carrier_hz_ > 0)) file_.fail("/cfr attribute carrier_hz", "is not a positive number");
+    h_.emplace(file_.dataset("/cfr/h"));
+    rows_ = h_->expect({std::nullopt, hsize_t{subcarriers_}}).rows();
   }
   bool present() const { return subcarriers_ > 0; }
   std::uint32_t subcarriers() const { return subcarriers_; }
@@ -67,16 +49,13 @@ class CfrReader {
 
   std::vector<std::complex<float>> read(hsize_t first, hsize_t count) const {
     hdf5::QuietHdf5 quiet;
-    return guard(path_, [&] {
-      return hdf5::read_rows<std::complex<float>>(h_.get(), "/cfr/h", types_.mem(hdf5::Dtype::c64), first, count,
-                                                  subcarriers_);
-    });
+    return h_->read<std::complex<float>>(types_.mem(hdf5::Dtype::c64), first, count, subcarriers_);
   }
 
  private:
-  std::string path_;
+  hdf5::CheckedFile file_;
   hdf5::Types types_;
-  hdf5::Handle fid_, group_, h_;
+  std::optional<hdf5::Dataset> h_;
   std::uint32_t subcarriers_ = 0;
   double spacing_hz_ = 0, carrier_hz_ = 0;
   hsize_t rows_ = 0;

@@ -14,7 +14,7 @@
 #include <utility>
 
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_util.hpp"
+#include "generators/hdf5_file.hpp"
 #include "generators/ns3_table.hpp"
 #include "meshkit/errors.hpp"
 
@@ -24,8 +24,6 @@ namespace {
 
 using hdf5::Handle;
 
-constexpr hsize_t kBlockRows = hsize_t{1} << 20;
-
 // Raised by finalize(): from_records() callers see an invalid_argument, load()
 // turns it into an InputError naming `element`.
 struct OrderError : std::invalid_argument {
@@ -33,152 +31,45 @@ struct OrderError : std::invalid_argument {
   std::string element;
 };
 
-class Reader {
- public:
-  explicit Reader(std::string path) : path_(std::move(path)) {}
-
-  [[noreturn]] void fail(const std::string& element, const std::string& what) const {
-    const std::string h5 = hdf5::hdf5_error_text();
-    throw meshkit::InputError(path_, element, what + (h5.empty() ? "" : " (" + h5 + ")"));
-  }
-
-  void open() {
-    if (H5Fis_hdf5(path_.c_str()) <= 0) fail("", "not an HDF5 file (or unreadable)");
-    fid_ = Handle(H5Fopen(path_.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-    if (!fid_.valid()) fail("", "cannot open as HDF5 (truncated or corrupt?)");
-  }
-
-  bool has_attr(const char* name) const {
-    const htri_t r = H5Aexists(fid_.get(), name);
-    H5Eclear2(H5E_DEFAULT);
-    return r > 0;
-  }
-
-  std::string str_attr(const char* name) const {
-    const std::string el = std::string("attribute ") + name;
-    if (!has_attr(name)) fail(el, "missing");
-    Handle a(H5Aopen(fid_.get(), name, H5P_DEFAULT), H5Aclose);
-    Handle t(a.valid() ? H5Aget_type(a.get()) : H5I_INVALID_HID, H5Tclose);
-    if (!t.valid() || H5Tget_class(t.get()) != H5T_STRING) fail(el, "not a string");
-    // One string: H5Aread writes every element of an array attribute.
-    Handle sp(H5Aget_space(a.get()), H5Sclose);
-    if (!sp.valid() || H5Sget_simple_extent_npoints(sp.get()) != 1) fail(el, "not a single value");
-    if (H5Tis_variable_str(t.get()) > 0) {
-      char* p = nullptr;
-      if (H5Aread(a.get(), t.get(), &p) < 0) fail(el, "cannot read");
-      std::string s = p ? p : "";
-      if (p) H5free_memory(p);
-      return s;
-    }
-    std::string s(H5Tget_size(t.get()), '\0');
-    if (H5Aread(a.get(), t.get(), s.data()) < 0) fail(el, "cannot read");
-    return s.substr(0, s.find('\0'));
-  }
-
-  template <class T>
-  T num_attr(const char* name, hid_t mtype) const {
-    const std::string el = std::string("attribute ") + name;
-    if (!has_attr(name)) fail(el, "missing");
-    Handle a(H5Aopen(fid_.get(), name, H5P_DEFAULT), H5Aclose);
-    Handle sp(a.valid() ? H5Aget_space(a.get()) : H5I_INVALID_HID, H5Sclose);
-    if (!sp.valid() || H5Sget_simple_extent_npoints(sp.get()) != 1) fail(el, "not a single value");
-    T v{};
-    if (H5Aread(a.get(), mtype, &v) < 0) fail(el, "cannot read as a number");
-    return v;
-  }
-
-  Handle dataset(const std::string& p) const {
-    // H5Lexists fails rather than answers when an intermediate group is missing.
-    for (std::size_t slash = p.find('/', 1);; slash = p.find('/', slash + 1)) {
-      const htri_t r = H5Lexists(fid_.get(), p.substr(0, slash).c_str(), H5P_DEFAULT);
-      H5Eclear2(H5E_DEFAULT);
-      if (r <= 0) fail(p, "missing dataset");
-      if (slash == std::string::npos) break;
-    }
-    Handle d(H5Dopen2(fid_.get(), p.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) fail(p, "cannot open dataset");
-    return d;
-  }
-
-  hsize_t rows(const std::string& p) const {
-    Handle d = dataset(p);
-    Handle sp(H5Dget_space(d.get()), H5Sclose);
-    hsize_t dims[H5S_MAX_RANK] = {};
-    if (!sp.valid() || H5Sget_simple_extent_ndims(sp.get()) < 1 || H5Sget_simple_extent_dims(sp.get(), dims, nullptr) < 0)
-      fail(p, "not an array");
-    return dims[0];
-  }
-
-  // Calls fn(first_row, block) for consecutive blocks of a [rows] (width 1) or
-  // [rows, width] dataset converted to mtype. T = char* reads variable-length strings.
-  template <class T, class Fn>
-  void scan(const std::string& p, hid_t mtype, hsize_t rows, hsize_t width, Fn&& fn) const {
-    Handle d = dataset(p);
-    Handle fs(H5Dget_space(d.get()), H5Sclose);
-    const int rank = width == 1 ? 1 : 2;
-    hsize_t dims[2] = {0, 0};
-    if (!fs.valid() || H5Sget_simple_extent_ndims(fs.get()) != rank || H5Sget_simple_extent_dims(fs.get(), dims, nullptr) < 0 ||
-        dims[0] != rows || (rank == 2 && dims[1] != width))
-      fail(p, "shape is not [" + std::to_string(rows) + (rank == 2 ? ", " + std::to_string(width) : "") +
-                  "] (inconsistent lengths)");
-    std::vector<T> buf;
-    for (hsize_t start = 0; start < rows; start += kBlockRows) {
-      const hsize_t n = std::min(kBlockRows, rows - start);
-      buf.assign(static_cast<std::size_t>(n * width), T{});
-      const hsize_t s[2] = {start, 0}, c[2] = {n, width};
-      Handle ms(H5Screate_simple(rank, c, nullptr), H5Sclose);
-      if (!ms.valid() || H5Sselect_hyperslab(fs.get(), H5S_SELECT_SET, s, nullptr, c, nullptr) < 0 ||
-          H5Dread(d.get(), mtype, ms.get(), fs.get(), H5P_DEFAULT, buf.data()) < 0)
-        fail(p, "cannot read rows " + std::to_string(start) + ".." + std::to_string(start + n - 1));
-      fn(static_cast<std::size_t>(start), buf);
-      if constexpr (std::is_same_v<T, char*>) H5Dvlen_reclaim(mtype, ms.get(), H5P_DEFAULT, buf.data());
-    }
-  }
-
- private:
-  std::string path_;
-  Handle fid_;
-};
-
 }  // namespace
 
 ChannelTrace ChannelTrace::load(const std::string& path) {
   hdf5::QuietHdf5 quiet;
-  Reader r(path);
+  hdf5::CheckedFile r(path);
   r.open();
-  if (const std::string f = r.str_attr("format"); f != kDatasetFormat)
+  if (const std::string f = r.attr<std::string>("/", "format"); f != kDatasetFormat)
     r.fail("attribute format", "is \"" + f + "\": not a " + kDatasetFormat + " dataset");
-  const std::string version = r.str_attr("schema_version");
+  const std::string version = r.attr<std::string>("/", "schema_version");
   int major = -1, supported = -1;
   std::sscanf(kDatasetSchemaVersion, "%d", &supported);
   if (std::sscanf(version.c_str(), "%d.", &major) != 1 || major != supported)
     r.fail("attribute schema_version", "version \"" + version + "\" is not supported (this program reads " +
                                            std::to_string(supported) + ".x)");
-  if (!r.has_attr("complete") || r.num_attr<std::uint64_t>("complete", H5T_NATIVE_UINT64) != 1)
+  if (r.attr_if<std::uint64_t>("/", "complete") != std::uint64_t{1})
     r.fail("attribute complete", "incomplete file: its writer stopped before finishing it");
 
   ChannelTrace t;
   t.path_ = path;
-  t.carrier_hz_ = r.num_attr<double>("carrier_hz", H5T_NATIVE_DOUBLE);
-  t.bandwidth_hz_ = r.num_attr<double>("bandwidth_hz", H5T_NATIVE_DOUBLE);
+  t.carrier_hz_ = r.attr<double>("/", "carrier_hz");
+  t.bandwidth_hz_ = r.attr<double>("/", "bandwidth_hz");
   // Noise power and the ns-3 table's header come from these: a bad value must
   // be named here, not where a later computation or writer trips on it
   // (tests/fuzz/fuzz_dataset_h5).
   for (const auto& [name, v] : {std::pair{"carrier_hz", t.carrier_hz_}, std::pair{"bandwidth_hz", t.bandwidth_hz_}})
     if (!(std::isfinite(v) && v > 0)) r.fail(std::string("attribute ") + name, "is not a positive number");
-  t.seed_ = r.num_attr<std::uint64_t>("seed", H5T_NATIVE_UINT64);
+  t.seed_ = r.attr<std::uint64_t>("/", "seed");
 
-  const hsize_t frames = r.rows("/frames/time_s");
+  const hsize_t frames = r.dataset("/frames/time_s").rows();
   t.time_.reserve(frames);
-  r.scan<double>("/frames/time_s", H5T_NATIVE_DOUBLE, frames, 1,
+  r.dataset("/frames/time_s").scan<double>(H5T_NATIVE_DOUBLE, frames, 1,
                  [&](std::size_t, const auto& b) { t.time_.insert(t.time_.end(), b.begin(), b.end()); });
   // offsets[f] must be the running sum of the counts; the sum closes the table.
   auto read_csr = [&](const std::string& offset, const std::string& count, std::vector<std::uint64_t>& out) {
     out.reserve(frames + 1);
-    r.scan<std::uint64_t>(offset, H5T_NATIVE_UINT64, frames, 1,
+    r.dataset(offset).scan<std::uint64_t>(H5T_NATIVE_UINT64, frames, 1,
                           [&](std::size_t, const auto& b) { out.insert(out.end(), b.begin(), b.end()); });
     std::uint64_t sum = 0;
-    r.scan<std::uint64_t>(count, H5T_NATIVE_UINT64, frames, 1, [&](std::size_t start, const auto& b) {
+    r.dataset(count).scan<std::uint64_t>(H5T_NATIVE_UINT64, frames, 1, [&](std::size_t start, const auto& b) {
       for (std::size_t i = 0; i < b.size(); sum += b[i++])
         if (out[start + i] != sum)
           r.fail(offset, "row " + std::to_string(start + i) + " is " + std::to_string(out[start + i]) +
@@ -189,61 +80,61 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
   read_csr("/frames/node_offset", "/frames/node_count", t.state_offset_);
   read_csr("/frames/link_offset", "/frames/link_count", t.link_offset_);
 
-  const hsize_t states = r.rows("/node_states/node");
+  const hsize_t states = r.dataset("/node_states/node").rows();
   if (states != t.state_offset_.back())
     r.fail("/node_states/node", std::to_string(states) + " rows but /frames/node_count sums to " +
                                     std::to_string(t.state_offset_.back()));
   t.states_.resize(states);
-  r.scan<std::uint32_t>("/node_states/node", H5T_NATIVE_UINT32, states, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/node").scan<std::uint32_t>(H5T_NATIVE_UINT32, states, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) t.states_[s + i].node = b[i];
   });
-  r.scan<double>("/node_states/position", H5T_NATIVE_DOUBLE, states, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/position").scan<double>(H5T_NATIVE_DOUBLE, states, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeState& n = t.states_[s + i];
       n.x = b[3 * i], n.y = b[3 * i + 1], n.z = b[3 * i + 2];
     }
   });
-  r.scan<float>("/node_states/velocity", H5T_NATIVE_FLOAT, states, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/velocity").scan<float>(H5T_NATIVE_FLOAT, states, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeState& n = t.states_[s + i];
       n.vx = b[3 * i], n.vy = b[3 * i + 1], n.vz = b[3 * i + 2];
     }
   });
-  r.scan<float>("/node_states/heading_deg", H5T_NATIVE_FLOAT, states, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/heading_deg").scan<float>(H5T_NATIVE_FLOAT, states, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) t.states_[s + i].heading_deg = b[i];
   });
 
-  const hsize_t nodes = r.rows("/nodes/id");
+  const hsize_t nodes = r.dataset("/nodes/id").rows();
   t.nodes_.resize(nodes);
   Handle str(H5Tcopy(H5T_C_S1), H5Tclose);
   if (!str.valid() || H5Tset_size(str.get(), H5T_VARIABLE) < 0 || H5Tset_cset(str.get(), H5T_CSET_UTF8) < 0)
     r.fail("/nodes", "cannot create the string type");
   for (auto [p, field] : {std::pair{"/nodes/id", &NodeInfo::id}, std::pair{"/nodes/vclass", &NodeInfo::vclass},
                           std::pair{"/nodes/vtype", &NodeInfo::vtype}})
-    r.scan<char*>(p, str.get(), nodes, 1, [&, field = field](std::size_t s, const auto& b) {
+    r.dataset(p).scan<char*>(str.get(), nodes, 1, [&, field = field](std::size_t s, const auto& b) {
       for (std::size_t i = 0; i < b.size(); ++i) t.nodes_[s + i].*field = b[i] ? b[i] : "";
     });
-  r.scan<std::uint8_t>("/nodes/kind", H5T_NATIVE_UINT8, nodes, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/nodes/kind").scan<std::uint8_t>(H5T_NATIVE_UINT8, nodes, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) {
       if (b[i] > 1) r.fail("/nodes/kind", "row " + std::to_string(s + i) + ": unknown node kind " + std::to_string(b[i]));
       t.nodes_[s + i].kind = static_cast<NodeKind>(b[i]);
     }
   });
-  r.scan<float>("/nodes/dimensions", H5T_NATIVE_FLOAT, nodes, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/nodes/dimensions").scan<float>(H5T_NATIVE_FLOAT, nodes, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeInfo& n = t.nodes_[s + i];
       n.length_m = b[3 * i], n.width_m = b[3 * i + 1], n.height_m = b[3 * i + 2];
     }
   });
 
-  const hsize_t links = r.rows("/links/tx");
+  const hsize_t links = r.dataset("/links/tx").rows();
   if (links != t.link_offset_.back())
     r.fail("/links/tx", std::to_string(links) + " rows but /frames/link_count sums to " +
                             std::to_string(t.link_offset_.back()));
   t.links_.resize(links);
   auto link_column = [&](const char* p, hid_t mtype, auto member) {
     using T = std::remove_reference_t<decltype(Link{}.*member)>;
-    r.scan<T>(p, mtype, links, 1, [&](std::size_t s, const auto& b) {
+    r.dataset(p).scan<T>(mtype, links, 1, [&](std::size_t s, const auto& b) {
       for (std::size_t i = 0; i < b.size(); ++i) t.links_[s + i].*member = b[i];
     });
   };

@@ -15,6 +15,7 @@
 
 #include "generators/dataset_schema.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators::sinr {
@@ -363,69 +364,27 @@ std::uint64_t SinrWriter::receptions() const { return impl_->reception_count; }
 
 namespace {
 
-struct ScheduleReader {
-  std::string path;
-  Handle fid;
-
-  [[noreturn]] void fail(const std::string& element, const std::string& what) const {
-    const std::string h5 = hdf5::hdf5_error_text();
-    throw meshkit::InputError(path, element, what + (h5.empty() ? "" : " (" + h5 + ")"));
-  }
-
-  template <class F>
-  auto guard(const std::string& element, F&& f) const {
-    try {
-      return f();
-    } catch (const hdf5::ReadError& e) {
-      throw meshkit::InputError(path, element, e.what());
-    }
-  }
-
-  // A whole dataset of the schema's type and rank converted to T; rows in *rows.
-  template <class T>
-  std::vector<T> column(const std::string& group, const std::string& name, hid_t mtype, hsize_t* rows) const {
-    const std::string p = "/" + group + "/" + name;
-    const auto& spec = hdf5::schema_dataset(sinr_schema(), group, name);
-    if (!hdf5::has_link(fid.get(), group) || !hdf5::has_link(fid.get(), p.substr(1))) fail(p, "missing dataset");
-    Handle d(H5Dopen2(fid.get(), p.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) fail(p, "cannot open dataset");
-    Handle type(H5Dget_type(d.get()), H5Tclose);
-    if (!type.valid()) fail(p, "cannot get type");
-    const std::string dtype = spec.at("dtype");
-    if (auto m = hdf5::type_mismatch(type.get(), dtype); !m.empty()) fail(p, "type is " + m + ", expected " + dtype);
-    return guard(p, [&] {
-      const auto dims = hdf5::dataset_dims(d.get(), p);
-      const auto& shape = spec.at("shape");
-      if (dims.size() != shape.size())
-        hdf5::read_fail(p, "rank " + std::to_string(dims.size()) + ", expected " + std::to_string(shape.size()));
-      const hsize_t width = dims.size() == 2 ? shape[1].get<hsize_t>() : 1;
-      if (dims.size() == 2 && dims[1] != width)
-        hdf5::read_fail(p, "dimension 1 is " + std::to_string(dims[1]) + ", expected " + std::to_string(width));
-      *rows = dims[0];
-      return hdf5::read_rows<T>(d.get(), p, mtype, 0, dims[0], width);
-    });
-  }
-};
+// A whole dataset of the schema's dtype and shape converted to T; rows in *rows.
+template <class T>
+std::vector<T> schema_column(const hdf5::CheckedFile& f, const std::string& group, const std::string& name,
+                             hsize_t* rows) {
+  const auto& spec = hdf5::schema_dataset(sinr_schema(), group, name);
+  const auto& shape = spec.at("shape");
+  const hsize_t width = shape.size() == 2 ? shape[1].get<hsize_t>() : 1;
+  const hdf5::Dataset d = f.dataset("/" + group + "/" + name);
+  d.expect_dtype(spec.at("dtype"));
+  d.expect(shape.size() == 2 ? hdf5::Extents{std::nullopt, width} : hdf5::Extents{std::nullopt});
+  *rows = d.rows();
+  return d.read<T>(hdf5::native_type<T>(), 0, *rows, width);
+}
 
 }  // namespace
 
 SinrSchedule read_sinr_schedule(const std::string& path) {
   QuietHdf5 quiet;
-  ScheduleReader r{path, {}};
-  std::error_code ec;
-  if (!std::filesystem::is_regular_file(path, ec)) throw meshkit::InputError(path, "", "not a readable file");
-  if (H5Fis_hdf5(path.c_str()) <= 0) {
-    hdf5::hdf5_error_text();
-    throw meshkit::InputError(path, "", "not an HDF5 file");
-  }
-  r.fid = Handle(H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!r.fid.valid()) r.fail("", "cannot open as HDF5 (truncated or corrupt?)");
-  const hid_t root = r.fid.get();
-
-  const auto str_attr = [&](const std::string& name) {
-    if (!hdf5::has_attr(root, name)) r.fail("attribute " + name, "missing");
-    return r.guard("attribute " + name, [&] { return hdf5::read_str_attr(root, "/", name); });
-  };
+  hdf5::CheckedFile r(path);
+  r.open();
+  const auto str_attr = [&](const std::string& name) { return r.attr<std::string>("/", name); };
   const std::string format = str_attr("format");
   if (format != kSinrFormat)
     r.fail("attribute format", "not a raysweep-sinr file (format \"" + format + "\")");
@@ -434,9 +393,7 @@ SinrSchedule read_sinr_schedule(const std::string& path) {
   if (!major || major != hdf5::major_version(kSinrSchemaVersion))
     r.fail("attribute schema_version", "version " + version + " is not supported (this program reads " +
                                            std::to_string(*hdf5::major_version(kSinrSchemaVersion)) + ".x)");
-  if (!hdf5::has_attr(root, "complete") ||
-      r.guard("attribute complete", [&] { return hdf5::read_num_attr<std::uint64_t>(root, "/", "complete",
-                                                                                     H5T_NATIVE_UINT64); }) != 1)
+  if (r.attr_if<std::uint64_t>("/", "complete") != std::uint64_t{1})
     r.fail("attribute complete", "missing or not 1: the file was not finished (its writer stopped before finish())");
 
   SinrSchedule out;
@@ -449,18 +406,11 @@ SinrSchedule read_sinr_schedule(const std::string& path) {
 
   // Nodes.
   hsize_t n = 0, rows = 0;
-  std::vector<std::string> ids;
-  {
-    const std::string p = "/nodes/id";
-    if (!hdf5::has_link(root, "nodes") || !hdf5::has_link(root, "nodes/id")) r.fail(p, "missing dataset");
-    Handle d(H5Dopen2(root, p.c_str(), H5P_DEFAULT), H5Dclose);
-    if (!d.valid()) r.fail(p, "cannot open dataset");
-    ids = r.guard(p, [&] { return hdf5::read_strings(d.get(), p); });
-    n = ids.size();
-  }
-  const auto kind = r.column<std::uint8_t>("nodes", "kind", H5T_NATIVE_UINT8, &rows);
+  const std::vector<std::string> ids = r.dataset("/nodes/id").strings();
+  n = ids.size();
+  const auto kind = schema_column<std::uint8_t>(r, "nodes", "kind", &rows);
   if (rows != n) r.fail("/nodes/kind", "has " + std::to_string(rows) + " rows, /nodes/id " + std::to_string(n));
-  const auto node_rat = r.column<std::uint8_t>("nodes", "rat", H5T_NATIVE_UINT8, &rows);
+  const auto node_rat = schema_column<std::uint8_t>(r, "nodes", "rat", &rows);
   if (rows != n) r.fail("/nodes/rat", "has " + std::to_string(rows) + " rows, /nodes/id " + std::to_string(n));
   out.nodes.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -471,29 +421,29 @@ SinrSchedule read_sinr_schedule(const std::string& path) {
 
   // Transmissions.
   hsize_t t = 0;
-  const auto node = r.column<std::uint32_t>("transmissions", "node", H5T_NATIVE_UINT32, &t);
+  const auto node = schema_column<std::uint32_t>(r, "transmissions", "node", &t);
   const auto same_rows = [&](const char* name, hsize_t got) {
     if (got != t)
       r.fail(std::string("/transmissions/") + name,
              "has " + std::to_string(got) + " rows, /transmissions/node " + std::to_string(t));
   };
-  const auto rat = r.column<std::uint8_t>("transmissions", "rat", H5T_NATIVE_UINT8, &rows);
+  const auto rat = schema_column<std::uint8_t>(r, "transmissions", "rat", &rows);
   same_rows("rat", rows);
-  const auto message = r.column<std::uint8_t>("transmissions", "message", H5T_NATIVE_UINT8, &rows);
+  const auto message = schema_column<std::uint8_t>(r, "transmissions", "message", &rows);
   same_rows("message", rows);
-  const auto packet = r.column<std::uint64_t>("transmissions", "packet", H5T_NATIVE_UINT64, &rows);
+  const auto packet = schema_column<std::uint64_t>(r, "transmissions", "packet", &rows);
   same_rows("packet", rows);
-  const auto attempt = r.column<std::uint8_t>("transmissions", "attempt", H5T_NATIVE_UINT8, &rows);
+  const auto attempt = schema_column<std::uint8_t>(r, "transmissions", "attempt", &rows);
   same_rows("attempt", rows);
-  const auto size = r.column<std::uint32_t>("transmissions", "size_bytes", H5T_NATIVE_UINT32, &rows);
+  const auto size = schema_column<std::uint32_t>(r, "transmissions", "size_bytes", &rows);
   same_rows("size_bytes", rows);
-  const auto start = r.column<double>("transmissions", "start_s", H5T_NATIVE_DOUBLE, &rows);
+  const auto start = schema_column<double>(r, "transmissions", "start_s", &rows);
   same_rows("start_s", rows);
-  const auto duration = r.column<double>("transmissions", "duration_s", H5T_NATIVE_DOUBLE, &rows);
+  const auto duration = schema_column<double>(r, "transmissions", "duration_s", &rows);
   same_rows("duration_s", rows);
-  const auto band = r.column<double>("transmissions", "band_hz", H5T_NATIVE_DOUBLE, &rows);
+  const auto band = schema_column<double>(r, "transmissions", "band_hz", &rows);
   same_rows("band_hz", rows);
-  const auto power = r.column<float>("transmissions", "power_dbm", H5T_NATIVE_FLOAT, &rows);
+  const auto power = schema_column<float>(r, "transmissions", "power_dbm", &rows);
   same_rows("power_dbm", rows);
 
   out.transmissions.resize(t);

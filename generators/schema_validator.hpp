@@ -1,0 +1,225 @@
+// Internal to generators/: what the per-format validators and summaries share
+// (schema_channels.cpp, schema_sinr.cpp, schema_ns3_table.cpp): the generic,
+// schema-driven Validator each format's rules derive from, the checked-file
+// helpers of dataset_info, and each format's entry points, which
+// dataset_schema.cpp dispatches to by the root `format` attribute.
+#pragma once
+
+#include <hdf5.h>
+
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <exception>
+#include <map>
+#include <optional>
+#include <set>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5_file.hpp"
+
+namespace raysweep::generators::schema {
+
+using hdf5::dataset_dims;
+using hdf5::Handle;
+using hdf5::has_attr;
+using hdf5::has_link;
+using hdf5::hdf5_error_text;
+using hdf5::kBlockRows;
+using hdf5::major_version;
+using hdf5::QuietHdf5;
+using hdf5::read_f64;
+using hdf5::read_fail;
+using hdf5::read_num_attr;
+using hdf5::read_rows;
+using hdf5::read_str_attr;
+using hdf5::read_u64;
+using hdf5::ReadError;
+using hdf5::type_mismatch;
+
+using hdf5::BlockReader;
+
+// The file's size, and per row of its main table (`per_key`).
+void add_file_size(nlohmann::json& info, const std::string& path, std::uint64_t rows, const char* per_key);
+
+// Counts the rows that break a rule and remembers the first.
+struct Tally {
+  std::uint64_t count = 0;
+  std::string first;
+  void add(std::uint64_t row, const std::string& detail) {
+    if (count++ == 0) first = "row " + std::to_string(row) + ": " + detail;
+  }
+  void report(std::vector<std::string>& problems, const std::string& where, const std::string& rule) const {
+    if (count == 0) return;
+    problems.push_back(where + ": " + std::to_string(count) + " row(s) " + rule + " (first at " + first + ")");
+  }
+};
+
+// Checks common to every format, driven by the schema: attributes, groups,
+// datasets (type, shape, symbolic dimensions, units), root counts, codes, bits,
+// references, offsets, and a full read of every dataset. The format's own
+// cross-dataset rules come from rules().
+class Validator {
+ public:
+  Validator(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems)
+      : path_(file.path()), problems_(problems), file_(file), schema_(schema),
+        supported_major_(major_version(schema.at("schema_version").get<std::string>()).value_or(-1)) {}
+  virtual ~Validator() = default;
+
+  void run();
+
+ protected:
+  virtual void rules() {}
+
+  std::string path_;
+  std::vector<std::string>& problems_;
+  const hdf5::CheckedFile& file_;
+  const nlohmann::json& schema_;
+  int supported_major_;
+  std::map<std::string, Handle> groups_;
+  std::map<std::string, Handle> good_;                         // datasets with the right type and shape
+  std::map<std::string, std::pair<hsize_t, std::string>> dims_;  // symbol -> value, where it came from
+  std::set<std::string> offsets_ok_;                           // offset datasets that passed
+
+  void problem(std::string s) { problems_.push_back(std::move(s)); }
+
+  template <class F>
+  void guarded(const std::string& where, F&& f) {
+    try {
+      f();
+    } catch (const std::exception& e) {
+      const std::string what = e.what();
+      problem(what.rfind(where, 0) == 0 ? what : where + ": " + what);  // readers' messages name the dataset
+    }
+  }
+
+  // Reads every row (decompressing every chunk), so damaged data is found even in
+  // datasets no rule looks at.
+  void check_readable(const std::string& p, hid_t ds);
+
+  static std::string path_of(const nlohmann::json& g, const nlohmann::json& d) {
+    return "/" + g.at("name").get<std::string>() + "/" + d.at("name").get<std::string>();
+  }
+
+  hid_t dset(const std::string& p) const {
+    auto it = good_.find(p);
+    return it == good_.end() ? H5I_INVALID_HID : it->second.get();
+  }
+  std::optional<hsize_t> dim(const std::string& sym) const {
+    auto it = dims_.find(sym);
+    if (it == dims_.end()) return std::nullopt;
+    return it->second.first;
+  }
+
+  // Binds a symbolic dimension or checks it against its earlier binding.
+  bool bind(const std::string& sym, hsize_t value, const std::string& where, const std::string& what) {
+    auto it = dims_.find(sym);
+    if (it == dims_.end()) {
+      dims_[sym] = {value, where};
+      return true;
+    }
+    if (it->second.first == value) return true;
+    problem(where + ": " + what + " " + std::to_string(value) + " but " + sym + " = " +
+            std::to_string(it->second.first) + " (from " + it->second.second + ")");
+    return false;
+  }
+
+  void check_attributes(hid_t loc, const std::string& where, const nlohmann::json& specs);
+  std::map<std::string, std::uint64_t> attr_values_;
+  std::string file_version_;  // the file's schema_version
+
+  // MAJOR.MINOR.PATCH as a comparable triple (zeros when unparsable).
+  static std::array<int, 3> version_triple(const std::string& v) {
+    std::array<int, 3> t{0, 0, 0};
+    std::sscanf(v.c_str(), "%d.%d.%d", &t[0], &t[1], &t[2]);
+    return t;
+  }
+
+  void check_group(const nlohmann::json& g);
+
+  void check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann::json& d);
+
+  void check_root_counts(const nlohmann::json& specs);
+
+  // Codes, flag bits, references and offsets of one dataset.
+  void check_values(const nlohmann::json& g, const nlohmann::json& d);
+};
+
+// ---------------------------------------------------------------------------
+// dataset_info helpers over the checked file. Their dataset errors keep the
+// column readers' whole text after the object ("FILE: /x: /x: not an array"),
+// which tests pin.
+
+struct InfoReader {
+  std::string path;
+  hdf5::CheckedFile file;
+
+  [[noreturn]] void fail(const std::string& element, const std::string& what) const { file.fail(element, what); }
+  template <class F>
+  auto guard(const std::string& element, F&& f) const {
+    return file.guard(element, std::forward<F>(f));
+  }
+  bool exists(const std::string& p) const { return file.exists(p); }
+  // The first dimension; a ReadError for a scalar dataset (fuzz_sinr_h5 found
+  // dims.at(0) throwing std::out_of_range past guard() here).
+  static hsize_t length(hid_t d, const std::string& p) {
+    const auto dims = dataset_dims(d, p);
+    if (dims.empty()) throw ReadError(p + ": not an array");
+    return dims[0];
+  }
+  hsize_t rows(const std::string& p) const {
+    const hdf5::Dataset d = file.dataset(p);
+    return guard(p, [&] { return length(d.get(), p); });
+  }
+  // Calls fn(block) for consecutive blocks of an integer column.
+  template <class Fn>
+  void scan_u64(const std::string& p, Fn&& fn) const {
+    const hdf5::Dataset d = file.dataset(p);
+    guard(p, [&] {
+      const hsize_t n = length(d.get(), p);
+      for (hsize_t start = 0; start < n; start += kBlockRows) fn(read_u64(d.get(), p, start, std::min(kBlockRows, n - start)));
+      return 0;
+    });
+  }
+  std::string str_attr(const std::string& name, const std::string& fallback) const {
+    return file.attr_if<std::string>("/", name).value_or(fallback);
+  }
+  // Every element of a numeric column.
+  std::vector<double> all_f64(const std::string& p) const {
+    const hdf5::Dataset d = file.dataset(p);
+    return guard(p, [&] { return read_f64(d.get(), p, 0, length(d.get(), p)); });
+  }
+  std::vector<std::uint64_t> all_u64(const std::string& p) const {
+    const hdf5::Dataset d = file.dataset(p);
+    return guard(p, [&] { return read_u64(d.get(), p, 0, length(d.get(), p)); });
+  }
+  // An attribute of `object` ("/" for the root); nullopt when missing.
+  template <class T>
+  std::optional<T> num_attr(const std::string& object, const std::string& name) const {
+    return file.attr_if<T>(object, name);
+  }
+};
+
+// Nodes by kind (the node table is written by finish(): absent in an unfinished file).
+void add_node_kinds(nlohmann::json& info, const InfoReader& r);
+std::string human_bytes(double b);
+// The first lines of both formats' summaries: file, completeness, format and writer.
+std::string identity_lines(const nlohmann::json& info);
+
+// Each format's rules beyond the schema, summary and summary text.
+void validate_channels(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
+nlohmann::json channel_info(const InfoReader& r);
+std::string format_channel_info(const nlohmann::json& info);
+void validate_sinr(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
+nlohmann::json sinr_info(const InfoReader& r);
+std::string format_sinr_info(const nlohmann::json& info);
+void validate_ns3_table(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
+nlohmann::json ns3_table_info(const InfoReader& r);
+std::string format_ns3_table_info(const nlohmann::json& info);
+
+}  // namespace raysweep::generators::schema
