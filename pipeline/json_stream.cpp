@@ -7,8 +7,9 @@
 namespace raysweep::pipeline {
 
 void JsonStream::newline(std::size_t depth) {
-  out_.put('\n');
-  for (std::size_t i = 0; i < depth * static_cast<std::size_t>(indent_); ++i) out_.put(' ');
+  const std::size_t n = depth * static_cast<std::size_t>(indent_) + 1;
+  if (pad_.size() < n) pad_ = "\n" + std::string(2 * n, ' ');
+  out_.write(pad_.data(), static_cast<std::streamsize>(n));
 }
 
 void JsonStream::before_value() {
@@ -94,11 +95,12 @@ void JsonStream::number(double v) {
 void JsonStream::dom(const nlohmann::json& v) {
   before_value();
   const std::string text = v.dump(indent_);
-  const std::string pad(levels_.size() * static_cast<std::size_t>(indent_), ' ');
-  for (char c : text) {
-    out_.put(c);
-    if (c == '\n') out_ << pad;
+  std::size_t from = 0;
+  for (std::size_t nl; (nl = text.find('\n', from)) != std::string::npos; from = nl + 1) {
+    out_.write(text.data() + from, static_cast<std::streamsize>(nl - from));
+    newline(levels_.size());
   }
+  out_.write(text.data() + from, static_cast<std::streamsize>(text.size() - from));
 }
 
 }  // namespace raysweep::pipeline

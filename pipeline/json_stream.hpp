@@ -60,6 +60,7 @@ class JsonStream {
   int indent_;
   std::vector<Level> levels_;
   bool wrote_root_ = false;
+  std::string pad_;  // a newline and spaces enough for the deepest level so far
 
   void before_value();
   void scalar(std::string_view text);
