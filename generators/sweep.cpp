@@ -1,5 +1,7 @@
 #include "generators/sweep.hpp"
 
+#include "generators/frame_record.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -92,38 +94,6 @@ void sort_and_check(std::vector<SweepVehicle>& vehicles, const std::vector<Sweep
   for (const auto& v : vehicles)
     for (const auto& r : rsus)
       if (r.node == v.node) throw std::invalid_argument("sweep: node " + std::to_string(v.node) + " is an RSU");
-}
-
-LinkRecord link_record(const tracer::PairResult& res, std::uint32_t tx, std::uint32_t rx) {
-  LinkRecord L;
-  L.tx = tx;
-  L.rx = rx;
-  L.los_class = static_cast<std::uint8_t>(res.los_class);
-  L.blocker_count = static_cast<std::uint16_t>(std::min<std::size_t>(res.blockers.size(), 65535));
-  L.gain_coherent_db = static_cast<float>(tracer::to_db(res.stats.gain_coherent));
-  L.gain_incoherent_db = static_cast<float>(tracer::to_db(res.stats.gain_incoherent));
-  L.first_delay_s = res.stats.first_delay_s;
-  L.rms_delay_spread_s = static_cast<float>(res.stats.rms_delay_spread_s);
-  L.path_count = static_cast<std::uint32_t>(res.paths.size());
-  L.paths_below_threshold = res.dropped_threshold;
-  L.los_class_fresnel = static_cast<std::uint8_t>(res.fresnel_class);
-  L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
-  L.vehicle_loss_db = static_cast<float>(res.vehicle_loss_db);
-  if (res.out_of_range) L.flags |= kLinkOutOfRange;
-  return L;
-}
-
-PathRecord path_record(const tracer::Path& path) {
-  PathRecord pr;
-  pr.a = std::complex<float>(static_cast<float>(path.a.real()), static_cast<float>(path.a.imag()));
-  pr.tau_s = path.tau_s;
-  pr.theta_t = static_cast<float>(path.theta_t);
-  pr.phi_t = static_cast<float>(path.phi_t);
-  pr.theta_r = static_cast<float>(path.theta_r);
-  pr.phi_r = static_cast<float>(path.phi_r);
-  pr.doppler_hz = static_cast<float>(path.doppler_hz);
-  pr.interaction_count = static_cast<std::uint8_t>(path.interactions.size());
-  return pr;
 }
 
 }  // namespace
@@ -276,15 +246,9 @@ Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antenna
     c.points.push_back(c.b);
     c.path_points.push_back(static_cast<std::uint32_t>(path.interactions.size() + 2));
     c.paths.push_back(path_record(path));
-    for (const auto& in : path.interactions) {
-      InteractionRecord ir;
-      ir.type = static_cast<std::uint8_t>(in.type);
-      ir.object = in.object < statics ? in.object : statics + antennas.slot_node.at(in.object - statics);
-      ir.x = static_cast<float>(in.point[0]);
-      ir.y = static_cast<float>(in.point[1]);
-      ir.z = static_cast<float>(in.point[2]);
-      c.interactions.push_back(ir);
-    }
+    for (const auto& in : path.interactions)
+      c.interactions.push_back(interaction_record(
+          in, in.object < statics ? in.object : statics + antennas.slot_node.at(in.object - statics)));
   }
   // The first Fresnel zone (the LoS label) lies within d + lambda / 2.
   c.reach = std::max(strongest_len, norm(c.a - c.b) + 0.5 * tracer::kSpeedOfLight / radio_.frequency_hz) +
@@ -295,9 +259,7 @@ Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antenna
       c.lo[k] = std::min(c.lo[k], p[k]);
       c.hi[k] = std::max(c.hi[k], p[k]);
     }
-  if (options_.cfr)
-    for (const auto& h : tracer::frequency_response(res.paths, *options_.cfr))
-      c.cfr.emplace_back(static_cast<float>(h.real()), static_cast<float>(h.imag()));
+  if (options_.cfr) c.cfr = cfr_record(res.paths, *options_.cfr);
   return c;
 }
 

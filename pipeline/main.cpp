@@ -132,7 +132,7 @@ Subcommand trace_command(CLI::App& app) {
   tc->add_option("--vehicles", trace->vehicles, "vehicle library folder (default: built-in parametric models)");
   tc->add_option("--poses", trace->poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
   tc->add_option("--nodes", trace->nodes, "bare antennas CSV: id,x,y,z");
-  tc->add_option("--out", trace->out, "output .json")->required();
+  tc->add_option("--out", trace->out, "output: .json (trace document) or .h5 (one-frame channel dataset)")->required();
   tc->add_option("--config", trace->config, "TOML config ([radio], [tracer], [materials.<name>])");
   tc->add_option("--lod", trace->lod, "vehicle LOD (default: each library entry's default)");
   tc->add_option("--exclude-objects", trace->exclude_objects,

@@ -6,13 +6,17 @@
 #include <cstdio>
 #include <optional>
 #include <filesystem>
+#include <fstream>
 
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/config.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/version.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_config.hpp"
+#include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
+#include "pipeline/trace_json.hpp"
 #include "tracer/tracer.hpp"
 
 namespace raysweep::pipeline {
@@ -22,71 +26,20 @@ using nlohmann::json;
 
 namespace {
 
-// JSON has no infinities: a pair without paths reports null gains.
-json db_or_null(double linear) {
-  if (!(linear > 0)) return nullptr;
-  return tracer::to_db(linear);
+// Through a temporary sibling, as every output.
+void write_trace_file(const std::string& path, const TraceDocument& doc) {
+  StagedFile staged(path);
+  {
+    std::ofstream out(staged.path(), std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(path + ": cannot create");
+    write_trace_json(out, doc);
+    out.close();
+    if (!out) throw std::runtime_error(path + ": write failed");
+  }
+  staged.commit();
 }
 
 }  // namespace
-
-json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>& nodes,
-                   const std::vector<std::string>& objects, const std::vector<std::string>& materials) {
-  json pairs = json::array();
-  for (const auto& p : snap.pairs) {
-    json paths = json::array();
-    for (const auto& path : p.paths) {
-      json inter = json::array();
-      for (const auto& i : path.interactions)
-        inter.push_back({{"type", tracer::interaction_name(i.type)},
-                         {"object", objects.at(i.object)},
-                         {"material", materials.at(i.material)},
-                         {"point", i.point}});
-      paths.push_back({{"a_re", path.a.real()},
-                       {"a_im", path.a.imag()},
-                       {"tau_s", path.tau_s},
-                       {"theta_t", path.theta_t},
-                       {"phi_t", path.phi_t},
-                       {"theta_r", path.theta_r},
-                       {"phi_r", path.phi_r},
-                       {"doppler_hz", path.doppler_hz},
-                       {"interactions", inter}});
-    }
-    json blockers = json::array();
-    for (auto b : p.blockers) blockers.push_back(objects.at(b));
-    pairs.push_back({{"tx", nodes[p.tx].id},
-                     {"rx", nodes[p.rx].id},
-                     {"los_class", tracer::los_class_name(p.los_class)},
-                     {"los_class_fresnel", tracer::los_class_name(p.fresnel_class)},
-                     {"fresnel_clearance", p.fresnel_clearance},
-                     {"vehicle_loss_db", p.vehicle_loss_db},
-                     {"blockers", blockers},
-                     {"path_gain_db", db_or_null(p.stats.gain_coherent)},
-                     {"path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent)},
-                     {"delay_s", p.stats.first_delay_s},
-                     {"rms_delay_spread_s", p.stats.rms_delay_spread_s},
-                     {"n_paths", p.paths.size()},
-                     {"candidates", p.candidates},
-                     {"dropped_transmission_cap", p.dropped_transmission_cap},
-                     {"paths_below_threshold", p.dropped_threshold},
-                     {"out_of_range", p.out_of_range},
-                     {"paths", paths}});
-  }
-  json node_list = json::array();
-  for (const auto& n : nodes)
-    node_list.push_back({{"id", n.id}, {"position", n.position}, {"velocity", n.velocity}, {"vehicle", n.vehicle}});
-  return {{"nodes", node_list},
-          {"pairs", pairs},
-          {"stats",
-           {{"rays", snap.stats.rays},
-            {"candidates", snap.stats.candidates},
-            {"paths", snap.stats.paths},
-            {"dropped_transmission_cap", snap.stats.dropped_transmission_cap},
-            {"paths_below_threshold", snap.stats.dropped_threshold},
-            {"out_of_range_pairs", snap.stats.out_of_range_pairs},
-            {"diffraction_paths", snap.stats.diffraction_paths},
-            {"diffuse_paths", snap.stats.diffuse_paths}}}};
-}
 
 tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {
   if (spec == "80211p") return tracer::ofdm_80211p(carrier_hz);
@@ -96,87 +49,138 @@ tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {
   throw std::invalid_argument("--cfr '" + spec + "': expected 80211p or nr:NUMEROLOGY:N_RB (e.g. nr:2:10)");
 }
 
-json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
-  const auto t0 = std::chrono::steady_clock::now();
-  const auto ext = fs::path(args.out).extension().string();
-  if (ext == ".h5")
-    throw std::invalid_argument(args.out + ": HDF5 output comes with the dataset schema (raysweep sweep); "
-                                "write .json for a single snapshot");
-  if (ext != ".json") throw std::invalid_argument(args.out + ": output must end in .json");
-  const TraceSettings settings = load_trace_config(args.config);
-  std::optional<tracer::OfdmGrid> grid;
-  if (!args.cfr.empty()) grid = parse_ofdm_grid(args.cfr, settings.radio.frequency_hz);
+namespace {
 
+// The snapshot's scene, vehicles and antennas, and the files they came from.
+struct SnapshotInputs {
+  std::optional<tracer::TraceScene> scene;
+  std::vector<PoseRow> poses;
+  std::vector<NodeRow> antennas;
+  std::vector<tracer::Node> nodes;
+  std::vector<meshkit::VehicleDims> dims;
+  std::vector<InputFile> files;
+};
+
+void add_poses(const TraceArgs& args, SnapshotInputs& in) {
+  VehicleLibrary library(args.vehicles, args.lod);
+  in.poses = read_poses_csv(args.poses);
+  in.files.push_back({"poses", args.poses});
+  try {
+    place_vehicles(*in.scene, library, in.poses);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(args.poses + ": " + e.what());
+  }
+  for (const auto& p : in.poses) in.dims.push_back(library.model(p.vclass).dims());
+  for (const auto& f : library.files()) in.files.push_back({"vehicle_model", f});
+}
+
+void add_antennas(const TraceArgs& args, SnapshotInputs& in) {
+  in.files.push_back({"nodes", args.nodes});
+  in.antennas = read_nodes_csv(args.nodes);
+  for (const auto& r : in.antennas) {
+    for (const auto& n : in.nodes)
+      if (n.id == r.id) throw std::invalid_argument(args.nodes + ": node id '" + r.id + "' is also a vehicle id");
+    in.nodes.push_back(tracer::Node{r.id, {r.x, r.y, r.z}, {0, 0, 0}, {1, 0, 0}, -1});
+  }
+}
+
+// Fills `in` (its scene cannot move).
+void load_snapshot(const TraceArgs& args, SnapshotInputs& in) {
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file))
     throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
-  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
+  in.scene.emplace(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
+  in.files.push_back({"scene", scene_file.string()});
+  if (!args.config.empty()) in.files.push_back({"config", args.config});
+  if (!args.poses.empty()) add_poses(args, in);
+  in.nodes = tracer::vehicle_nodes(*in.scene);
+  if (!args.nodes.empty()) add_antennas(args, in);
+  if (in.nodes.size() < 2) throw std::invalid_argument("trace: need at least two antennas (--poses and/or --nodes)");
+}
 
-  std::vector<InputFile> inputs{{"scene", scene_file.string()}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
-  VehicleLibrary library(args.vehicles, args.lod);
-  std::vector<PoseRow> poses;
-  if (!args.poses.empty()) {
-    poses = read_poses_csv(args.poses);
-    inputs.push_back({"poses", args.poses});
-    try {
-      place_vehicles(scene, library, poses);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(args.poses + ": " + e.what());
-    }
-    for (const auto& f : library.files()) inputs.push_back({"vehicle_model", f});
+void write_json_output(const TraceArgs& args, const SnapshotInputs& in, const tracer::Snapshot& snap,
+                       const tracer::OfdmGrid* grid, const json& config, const json& prov) {
+  const std::vector<std::string> objects = in.scene->object_names();
+  TraceDocument doc;
+  doc.snapshot = &snap;
+  doc.nodes = &in.nodes;
+  doc.objects = &objects;
+  doc.materials = &in.scene->material_names();
+  doc.grid = grid;
+  doc.cfr_spec = args.cfr;
+  doc.radio = config["radio"];
+  doc.provenance = prov;
+  write_trace_file(args.out, doc);
+}
+
+void write_h5_output(const TraceArgs& args, const SnapshotInputs& in, const tracer::Snapshot& snap,
+                     const tracer::OfdmGrid* grid, const TraceSettings& settings, const json& config,
+                     const json& prov) {
+  generators::DatasetHeader header;
+  header.raysweep_version = kVersion;
+  header.git_hash = kGitHash;
+  header.config = config;
+  header.inputs = prov["inputs"];
+  header.provenance = prov;
+  header.carrier_hz = settings.radio.frequency_hz;
+  header.bandwidth_hz = settings.radio.bandwidth_hz;
+  if (grid) {
+    header.cfr_subcarriers = static_cast<std::uint32_t>(grid->n_subcarriers);
+    header.cfr_subcarrier_spacing_hz = grid->subcarrier_spacing_hz;
   }
-  auto nodes = tracer::vehicle_nodes(scene);
-  if (!args.nodes.empty()) {
-    inputs.push_back({"nodes", args.nodes});
-    for (const auto& r : read_nodes_csv(args.nodes)) {
-      for (const auto& n : nodes)
-        if (n.id == r.id) throw std::invalid_argument(args.nodes + ": node id '" + r.id + "' is also a vehicle id");
-      nodes.push_back(tracer::Node{r.id, {r.x, r.y, r.z}, {0, 0, 0}, {1, 0, 0}, -1});
-    }
-  }
-  if (nodes.size() < 2) throw std::invalid_argument("trace: need at least two antennas (--poses and/or --nodes)");
+  SnapshotNodes nodes;
+  nodes.nodes = &in.nodes;
+  nodes.poses = &in.poses;
+  nodes.antennas = &in.antennas;
+  nodes.dims = in.dims;
+  nodes.static_objects = in.scene->object_names();
+  nodes.static_objects.resize(in.scene->static_object_count());
+  write_trace_dataset(args.out, header, snap, nodes, grid);
+}
+
+json trace_summary(const tracer::Snapshot& snap, std::size_t antennas, double trace_s, double total_s) {
+  std::size_t los = 0, nlosv = 0, nlos = 0;
+  for (const auto& p : snap.pairs)
+    (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
+  spdlog::info("traced {} antennas, {} pairs ({} LOS / {} NLOSV / {} NLOS), {} paths in {:.1f} ms; total {:.2f} s",
+               antennas, snap.pairs.size(), los, nlosv, nlos, snap.stats.paths, trace_s * 1e3, total_s);
+  return {{"pairs", snap.pairs.size()}, {"paths", snap.stats.paths}, {"los", los}, {"nlosv", nlosv},
+          {"nlos", nlos}, {"trace_ms", trace_s * 1e3}};
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto ext = fs::path(args.out).extension().string();
+  if (ext != ".json" && ext != ".h5")
+    throw std::invalid_argument(args.out + ": output must end in .json (trace document) or .h5 (channel dataset)");
+  const TraceSettings settings = load_trace_config(args.config);
+  std::optional<tracer::OfdmGrid> grid;
+  if (!args.cfr.empty()) grid = parse_ofdm_grid(args.cfr, settings.radio.frequency_hz);
+  SnapshotInputs in;
+  load_snapshot(args, in);
 
   const auto t1 = std::chrono::steady_clock::now();
-  const auto snap = tracer::trace_snapshot(scene, nodes, settings.tracer, settings.radio);
-  const double trace_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
+  const auto snap = tracer::trace_snapshot(*in.scene, in.nodes, settings.tracer, settings.radio);
+  const double trace_s = seconds_since(t1);
 
-  json out = snapshot_json(snap, nodes, scene.object_names(), scene.material_names());
-  if (grid) {
-    out["cfr_grid"] = {{"spec", args.cfr},
-                       {"carrier_hz", grid->carrier_hz},
-                       {"subcarrier_spacing_hz", grid->subcarrier_spacing_hz},
-                       {"n_subcarriers", grid->n_subcarriers},
-                       {"first_offset_hz", grid->offset_hz(0)}};
-    for (std::size_t i = 0; i < snap.pairs.size(); ++i) {
-      const auto h = tracer::frequency_response(snap.pairs[i].paths, *grid);
-      json re = json::array(), im = json::array();
-      for (const auto& v : h) {
-        re.push_back(v.real());
-        im.push_back(v.imag());
-      }
-      out["pairs"][i]["cfr_re"] = re;
-      out["pairs"][i]["cfr_im"] = im;
-    }
-  }
   json config = settings.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
   config["lod"] = args.lod;
   config["exclude_objects"] = args.exclude_objects;
   config["cfr"] = args.cfr;
-  out["radio"] = config["radio"];
-  out["provenance"] = provenance("trace", inputs, config, argv);
-  out["provenance"]["embree"] = tracer::embree_version();
+  json prov = provenance("trace", in.files, config, argv);
+  prov["embree"] = tracer::embree_version();
   if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
-  write_file_atomic(args.out, out.dump(1) + "\n");
-  std::size_t los = 0, nlosv = 0, nlos = 0;
-  for (const auto& p : snap.pairs)
-    (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
-  spdlog::info("traced {} antennas, {} pairs ({} LOS / {} NLOSV / {} NLOS), {} paths in {:.1f} ms; total {:.2f} s",
-               nodes.size(), snap.pairs.size(), los, nlosv, nlos, snap.stats.paths, trace_s * 1e3,
-               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  return {{"pairs", snap.pairs.size()}, {"paths", snap.stats.paths}, {"los", los}, {"nlosv", nlosv},
-          {"nlos", nlos}, {"trace_ms", trace_s * 1e3}};
+  const tracer::OfdmGrid* g = grid ? &*grid : nullptr;
+  if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov);
+  else write_json_output(args, in, snap, g, config, prov);
+  return trace_summary(snap, in.nodes.size(), trace_s, seconds_since(t0));
 }
 
 }  // namespace raysweep::pipeline

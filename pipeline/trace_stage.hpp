@@ -27,11 +27,6 @@ struct TraceArgs {
 // "80211p" or "nr:MU:NRB" at `carrier_hz`; std::invalid_argument otherwise.
 tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz);
 
-// Per-pair JSON as documented for `raysweep trace` (names resolved).
-nlohmann::json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>& nodes,
-                             const std::vector<std::string>& object_names,
-                             const std::vector<std::string>& material_names);
-
 nlohmann::json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

@@ -74,6 +74,8 @@ TEST(CliTrace, DemoSnapshotHasEveryPairWithDocumentedFields) {
   // Same inputs, same numbers (the command line differs only in --out).
   r = run_raysweep(args + " --out " + (dir / "b.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Streamed, yet the text nlohmann's dump(1) gives of the same document.
+  EXPECT_EQ(read_text(dir / "a.json"), j.dump(1) + "\n");
   json a = j, b = json::parse(read_text(dir / "b.json"));
   a["provenance"].erase("command");
   b["provenance"].erase("command");
@@ -146,9 +148,13 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("materials.concrete.thickness_m"), std::string::npos) << r.output;
 
-  r = run_raysweep("-q trace --scene " + demo_scene().string() + nodes + " --out " + (dir / "t.h5").string());
+  r = run_raysweep("-q trace --scene " + demo_scene().string() + nodes + " --out " + (dir / "t.csv").string());
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("HDF5"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(".json"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(".h5"), std::string::npos) << r.output;
+  r = run_raysweep("-q trace --scene " + demo_scene().string() + nodes + " --config " + (dir / "c.toml").string() +
+                   " --out " + (dir / "t.h5").string());
+  EXPECT_EQ(r.exit_code, 2);
 
   r = run_raysweep("-q trace --scene " + (dir / "nowhere").string() + nodes + " --out " + out.string());
   EXPECT_EQ(r.exit_code, 2);
@@ -156,6 +162,7 @@ TEST(CliTrace, BadInputIsAClearErrorAndWritesNothing) {
 
   EXPECT_FALSE(fs::exists(out));
   EXPECT_FALSE(fs::exists(dir / "t.h5"));
+  EXPECT_FALSE(fs::exists(dir / "t.csv"));
 }
 
 TEST(CliTrace, DiffuseByTilesIsRecordedAndReciprocal) {
@@ -224,6 +231,36 @@ TEST(CliTrace, FrequencyResponseOnOfdmGrids) {
   auto r = run_raysweep("-q trace --scene " + demo_scene().string() + " --nodes " + (dir / "nodes.csv").string() +
                         " --cfr nr:9:10 --out " + (dir / "t.json").string());
   EXPECT_EQ(r.exit_code, 2) << r.output;
+}
+
+// --out X.h5: the snapshot as a one-frame channel dataset, the same links and
+// paths as the JSON document, with its frequency responses.
+TEST(CliTrace, WritesTheOneFrameChannelDataset) {
+  auto dir = scratch_dir("h5");
+  auto r = run_raysweep("-q poses --net " + demo_net() + " --count 6 --seed 2 --out " + (dir / "poses.csv").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  write_text(dir / "nodes.csv", "rsu1,150,60,6\n");
+  const std::string args = "-q trace --scene " + demo_scene().string() + " --poses " + (dir / "poses.csv").string() +
+                           " --nodes " + (dir / "nodes.csv").string() + " --cfr 80211p --out ";
+  r = run_raysweep(args + (dir / "t.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_raysweep(args + (dir / "t.h5").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "t.h5.tmp.h5"));
+  r = run_raysweep("validate " + (dir / "t.h5").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = run_raysweep("info --json " + (dir / "t.h5").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json info = json::parse(r.output), j = json::parse(read_text(dir / "t.json"));
+  std::size_t paths = 0;
+  for (const auto& p : j["pairs"]) paths += p["n_paths"].get<std::size_t>();
+  EXPECT_EQ(info["frames"], 1);
+  EXPECT_EQ(info["nodes"], 7);
+  EXPECT_EQ(info["vehicles"], 6);
+  EXPECT_EQ(info["rsus"], 1);
+  EXPECT_EQ(info["links"].get<std::size_t>(), j["pairs"].size());
+  EXPECT_EQ(info["paths"].get<std::size_t>(), paths);
+  EXPECT_TRUE(info["has_cfr"].get<bool>());
 }
 
 TEST(CliTrace, PosesAreDeterministicAndOnTheLanes) {

@@ -1,0 +1,108 @@
+#include "pipeline/trace_json.hpp"
+
+#include "pipeline/json_stream.hpp"
+
+namespace raysweep::pipeline {
+
+namespace {
+
+// JSON has no infinities: a pair without paths reports null gains.
+nlohmann::json db_or_null(double linear) {
+  if (!(linear > 0)) return nullptr;
+  return tracer::to_db(linear);
+}
+
+void write_path(JsonStream& js, const tracer::Path& path, const TraceDocument& doc) {
+  js.begin_object().field("a_im", path.a.imag()).field("a_re", path.a.real()).field("doppler_hz", path.doppler_hz);
+  js.key("interactions").begin_array();
+  for (const auto& i : path.interactions)
+    js.begin_object()
+        .field("material", doc.materials->at(i.material))
+        .field("object", doc.objects->at(i.object))
+        .number_array("point", i.point)
+        .field("type", tracer::interaction_name(i.type))
+        .end_object();
+  js.end_array();
+  js.field("phi_r", path.phi_r).field("phi_t", path.phi_t).field("tau_s", path.tau_s);
+  js.field("theta_r", path.theta_r).field("theta_t", path.theta_t).end_object();
+}
+
+void write_cfr(JsonStream& js, const tracer::PairResult& p, const tracer::OfdmGrid& grid) {
+  const auto h = tracer::frequency_response(p.paths, grid);
+  js.key("cfr_im").begin_array();
+  for (const auto& v : h) js.value(v.imag());
+  js.end_array().key("cfr_re").begin_array();
+  for (const auto& v : h) js.value(v.real());
+  js.end_array();
+}
+
+// Keys in the order std::map sorts them (the stream checks it).
+void write_pair(JsonStream& js, const tracer::PairResult& p, const TraceDocument& doc) {
+  js.begin_object().key("blockers").begin_array();
+  for (auto b : p.blockers) js.value(doc.objects->at(b));
+  js.end_array().field("candidates", p.candidates);
+  if (doc.grid) write_cfr(js, p, *doc.grid);
+  js.field("delay_s", p.stats.first_delay_s)
+      .field("dropped_transmission_cap", p.dropped_transmission_cap)
+      .field("fresnel_clearance", p.fresnel_clearance)
+      .field("los_class", tracer::los_class_name(p.los_class))
+      .field("los_class_fresnel", tracer::los_class_name(p.fresnel_class))
+      .field("n_paths", p.paths.size())
+      .field("out_of_range", p.out_of_range)
+      .field("path_gain_db", db_or_null(p.stats.gain_coherent))
+      .field("path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent));
+  js.key("paths").begin_array();
+  for (const auto& path : p.paths) write_path(js, path, doc);
+  js.end_array();
+  js.field("paths_below_threshold", p.dropped_threshold)
+      .field("rms_delay_spread_s", p.stats.rms_delay_spread_s)
+      .field("rx", (*doc.nodes)[p.rx].id)
+      .field("tx", (*doc.nodes)[p.tx].id)
+      .field("vehicle_loss_db", p.vehicle_loss_db)
+      .end_object();
+}
+
+void write_nodes(JsonStream& js, const std::vector<tracer::Node>& nodes) {
+  js.key("nodes").begin_array();
+  for (const auto& n : nodes)
+    js.begin_object()
+        .field("id", n.id)
+        .number_array("position", n.position)
+        .field("vehicle", n.vehicle)
+        .number_array("velocity", n.velocity)
+        .end_object();
+  js.end_array();
+}
+
+nlohmann::json stats_json(const tracer::SnapshotStats& s) {
+  return {{"rays", s.rays},
+          {"candidates", s.candidates},
+          {"paths", s.paths},
+          {"dropped_transmission_cap", s.dropped_transmission_cap},
+          {"paths_below_threshold", s.dropped_threshold},
+          {"out_of_range_pairs", s.out_of_range_pairs},
+          {"diffraction_paths", s.diffraction_paths},
+          {"diffuse_paths", s.diffuse_paths}};
+}
+
+}  // namespace
+
+void write_trace_json(std::ostream& out, const TraceDocument& doc) {
+  JsonStream js(out, 1);
+  js.begin_object();
+  if (doc.grid)
+    js.field("cfr_grid", nlohmann::json{{"spec", doc.cfr_spec},
+                                        {"carrier_hz", doc.grid->carrier_hz},
+                                        {"subcarrier_spacing_hz", doc.grid->subcarrier_spacing_hz},
+                                        {"n_subcarriers", doc.grid->n_subcarriers},
+                                        {"first_offset_hz", doc.grid->offset_hz(0)}});
+  write_nodes(js, *doc.nodes);
+  js.key("pairs").begin_array();
+  for (const auto& p : doc.snapshot->pairs) write_pair(js, p, doc);
+  js.end_array();
+  js.field("provenance", doc.provenance).field("radio", doc.radio).field("stats", stats_json(doc.snapshot->stats));
+  js.end_object();
+  out << '\n';
+}
+
+}  // namespace raysweep::pipeline

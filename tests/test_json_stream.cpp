@@ -1,0 +1,119 @@
+// pipeline::JsonStream writes, without a DOM, the very text nlohmann::json's
+// dump(indent) writes of the same document; keys out of order are refused.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+
+#include "pipeline/json_stream.hpp"
+
+using raysweep::pipeline::JsonStream;
+using nlohmann::json;
+
+namespace {
+
+// Streams `v` value by value (objects in their sorted key order).
+void stream(JsonStream& js, const json& v) {
+  if (v.is_object()) {
+    js.begin_object();
+    for (const auto& [k, x] : v.items()) {
+      js.key(k);
+      stream(js, x);
+    }
+    js.end_object();
+  } else if (v.is_array()) {
+    js.begin_array();
+    for (const auto& x : v) stream(js, x);
+    js.end_array();
+  } else if (v.is_number_float()) {
+    js.value(v.get<double>());
+  } else if (v.is_number_unsigned()) {
+    js.value(v.get<std::uint64_t>());
+  } else if (v.is_number_integer()) {
+    js.value(v.get<std::int64_t>());
+  } else if (v.is_boolean()) {
+    js.value(v.get<bool>());
+  } else {
+    js.value(v);  // strings and null
+  }
+}
+
+std::string streamed(const json& v, int indent) {
+  std::ostringstream out;
+  JsonStream js(out, indent);
+  stream(js, v);
+  EXPECT_TRUE(js.complete());
+  return out.str();
+}
+
+// Random documents of every value kind, nesting and emptiness.
+json random_value(std::mt19937_64& rng, int depth) {
+  std::uniform_int_distribution<int> kind(0, depth > 3 ? 5 : 7);
+  switch (kind(rng)) {
+    case 0: return nullptr;
+    case 1: return std::uniform_int_distribution<int>(0, 1)(rng) == 1;
+    case 2: return std::uniform_int_distribution<std::int64_t>(-1000000, 1000000)(rng);
+    case 3: return std::uniform_int_distribution<std::uint64_t>()(rng);
+    case 4: {
+      const double m = std::uniform_real_distribution<double>(-1, 1)(rng);
+      return std::ldexp(m, std::uniform_int_distribution<int>(-1070, 1020)(rng));
+    }
+    case 5: return std::string("s\"\\\n\t\u00e9") + std::to_string(rng() % 100);
+    case 6: {
+      json a = json::array();
+      for (int n = std::uniform_int_distribution<int>(0, 4)(rng); n > 0; --n) a.push_back(random_value(rng, depth + 1));
+      return a;
+    }
+    default: {
+      json o = json::object();
+      for (int n = std::uniform_int_distribution<int>(0, 4)(rng); n > 0; --n)
+        o["k" + std::to_string(rng() % 50)] = random_value(rng, depth + 1);
+      return o;
+    }
+  }
+}
+
+}  // namespace
+
+TEST(JsonStream, WritesWhatDumpWritesForRandomDocuments) {
+  std::mt19937_64 rng(7);
+  for (int i = 0; i < 300; ++i) {
+    const json doc = random_value(rng, 0);
+    for (int indent : {1, 2}) ASSERT_EQ(streamed(doc, indent), doc.dump(indent)) << doc.dump();
+  }
+}
+
+TEST(JsonStream, NumbersAsDumpWritesThem) {
+  const double inf = std::numeric_limits<double>::infinity();
+  json doc = {{"a", 0.0},     {"b", -0.0},          {"c", 1e-300}, {"d", 5e-324},  {"e", 1.0 / 3},
+              {"f", 1e21},    {"g", 123456789.0},   {"h", -2.5},   {"i", 1e15},    {"j", 1e16},
+              {"k", 0.0001},  {"l", 0.00001},       {"m", 255u},   {"n", -7},      {"o", json::array()},
+              {"p", json::object()}, {"q", std::numeric_limits<double>::max()}};
+  EXPECT_EQ(streamed(doc, 1), doc.dump(1));
+  // Not finite: null, as dump writes it.
+  std::ostringstream out;
+  JsonStream js(out, 1);
+  js.begin_array().value(std::nan("")).value(inf).value(-inf).end_array();
+  EXPECT_EQ(out.str(), json::array({nullptr, nullptr, nullptr}).dump(1));
+}
+
+TEST(JsonStream, RefusesKeysOutOfOrderAndUnbalancedCalls) {
+  std::ostringstream out;
+  JsonStream js(out);
+  js.begin_object().field("b", 1);
+  EXPECT_THROW(js.key("a"), std::logic_error);
+  EXPECT_THROW(js.key("b"), std::logic_error);  // a repeated key
+  EXPECT_THROW(js.end_array(), std::logic_error);
+  js.key("c");
+  EXPECT_THROW(js.end_object(), std::logic_error);  // a key without its value
+  js.value(2).end_object();
+  EXPECT_TRUE(js.complete());
+  EXPECT_THROW(js.value(3), std::logic_error);  // a second document
+  JsonStream arr(out);
+  arr.begin_array();
+  EXPECT_THROW(arr.key("a"), std::logic_error);
+  EXPECT_FALSE(arr.complete());
+}
