@@ -20,6 +20,7 @@
 #include "pipeline/config.hpp"
 #include "pipeline/config_tables.hpp"
 #include "pipeline/fcd.hpp"
+#include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_config.hpp"
@@ -483,6 +484,7 @@ json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv
 
   // Scene, library, types, road-side units.
   tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), cfg.exclude_objects));
+  scene.set_precompute_store(scene_precompute_store(scene_file.parent_path()));
   const auto bounds = scene.static_bounds();
   VehicleLibrary library(args.vehicles, cfg.lod);
   const VTypeMap vtypes = read_vtype_files(args.vtypes);

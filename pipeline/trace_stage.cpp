@@ -10,6 +10,7 @@
 
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/config.hpp"
+#include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/version.hpp"
 #include "pipeline/staged_output.hpp"
@@ -90,6 +91,7 @@ void load_snapshot(const TraceArgs& args, SnapshotInputs& in) {
   if (!fs::exists(scene_file))
     throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
   in.scene.emplace(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
+  in.scene->set_precompute_store(scene_precompute_store(args.scene));
   in.files.push_back({"scene", scene_file.string()});
   if (!args.config.empty()) in.files.push_back({"config", args.config});
   if (!args.poses.empty()) add_poses(args, in);

@@ -263,6 +263,39 @@ TEST(CliTrace, WritesTheOneFrameChannelDataset) {
   EXPECT_TRUE(info["has_cfr"].get<bool>());
 }
 
+// The models' precomputed tables land in the scene's cache/ and the next
+// process loads them; a damaged one is rebuilt with a warning. The document
+// is the same each time.
+TEST(CliTrace, KeepsModelTablesBesideTheScene) {
+  auto dir = scratch_dir("cache");
+  fs::copy(demo_scene(), dir / "scene", fs::copy_options::recursive);
+  fs::remove_all(dir / "scene" / "cache");
+  write_text(dir / "poses.csv",
+             "id,class,x,y,heading_deg,speed_mps\ncar1,passenger,120,40,90,10\nbus1,bus,140,40,90,8\n");
+  const std::string args = "trace --scene " + (dir / "scene").string() + " --poses " + (dir / "poses.csv").string();
+  auto strip = [](json j) {
+    j.erase("provenance");
+    return j.dump();
+  };
+  auto r = run_raysweep(args + " --out " + (dir / "a.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  std::vector<fs::path> tables;
+  for (const auto& e : fs::directory_iterator(dir / "scene" / "cache")) tables.push_back(e.path());
+  ASSERT_EQ(tables.size(), 4u);  // two models: a mount list and a bounce table each
+  const auto stamp = fs::last_write_time(tables[0]);
+  r = run_raysweep(args + " --out " + (dir / "b.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(fs::last_write_time(tables[0]), stamp);  // loaded, not written again
+  EXPECT_EQ(strip(json::parse(read_text(dir / "a.json"))), strip(json::parse(read_text(dir / "b.json"))));
+  fs::resize_file(tables[1], fs::file_size(tables[1]) / 2);
+  r = run_raysweep(args + " --out " + (dir / "c.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(tables[1].filename().string()), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("rebuilding"), std::string::npos) << r.output;
+  EXPECT_EQ(strip(json::parse(read_text(dir / "a.json"))), strip(json::parse(read_text(dir / "c.json"))));
+  EXPECT_GT(fs::file_size(tables[1]), 24u);  // stored whole again
+}
+
 TEST(CliTrace, PosesAreDeterministicAndOnTheLanes) {
   auto dir = scratch_dir("poses");
   for (const char* name : {"a.csv", "b.csv"}) {

@@ -116,6 +116,7 @@ struct TraceScene::Shape {
   Sphere bounds;  // of all vertices (shape frame)
   NormalIndex normals;
   Vec3 antenna{0, 0, 0};
+  std::string content_key;  // vehicle models: geometry, materials, Embree version (precompute.hpp)
   std::vector<std::uint32_t> seen_from_mount;  // vehicle models: faces the antenna mount sees
   std::vector<Edge> model_edges;               // vehicle models: wedges in the model frame
   // Vehicle models: multi-bounce sequences and, per arrival direction cell
@@ -144,6 +145,7 @@ struct TraceScene::Impl {
   // (a bitset: a list per face and side grows as faces squared in ints).
   std::vector<std::uint64_t> reaching;
   std::size_t reaching_words = 0;
+  std::shared_ptr<const PrecomputeStore> store;
   mutable std::mutex memo_mutex;
   mutable std::map<std::string, std::shared_ptr<const void>> memo;
 
@@ -608,6 +610,70 @@ std::uint16_t TraceScene::material_index(const std::string& name) {
   return static_cast<std::uint16_t>(materials_.size() - 1);
 }
 
+namespace {
+
+// What a model's tables depend on: its triangles, faces and materials, and
+// the Embree that traces them (its float traversal decides grazing hits).
+std::string model_content_key(const TraceScene::Shape& s, const std::vector<std::string>& materials,
+                              long embree_version) {
+  ContentKey k;
+  k.add("raysweep vehicle model tables").add_u64(static_cast<std::uint64_t>(embree_version));
+  k.add_vector(s.vertices).add_vector(s.triangles).add_vector(s.tri_face);
+  for (auto m : s.face_material) k.add(materials.at(m));
+  return k.hex();
+}
+
+// Faces the antenna sees on its own vehicle (through its windows too: rays
+// continue through every face until they leave the model).
+std::vector<std::uint32_t> faces_seen_from(const TraceScene::Shape& s, const Vec3& antenna) {
+  std::vector<char> seen(s.face_plane.size(), 0);
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  for (const Vec3& dir : fibonacci_sphere(1 << 16)) {
+    float tnear = 0;
+    for (int hop = 0; hop < 64; ++hop) {
+      RTCRayHit rh = make_ray(antenna, dir, tnear, 1e3);
+      rtcIntersect1(s.scene, &ctx, &rh);
+      if (rh.hit.geomID == kNone) break;
+      seen[s.tri_face[rh.hit.primID]] = 1;
+      tnear = rh.ray.tfar + 1e-4f;
+    }
+  }
+  std::vector<std::uint32_t> out;
+  for (std::uint32_t f = 0; f < seen.size(); ++f)
+    if (seen[f]) out.push_back(f);
+  return out;
+}
+
+// Face ids, strictly increasing, each below `faces`.
+bool decode_increasing(const std::vector<std::uint32_t>& w, std::uint32_t faces, std::vector<std::uint32_t>& out) {
+  for (std::size_t i = 0; i < w.size(); ++i)
+    if (w[i] >= faces || (i > 0 && w[i] <= w[i - 1])) return false;
+  out = w;
+  return true;
+}
+
+// Table `key` from the store when it unframes and decodes (decode fills the
+// outputs), else built here (build fills them) and stored (encode).
+template <class Decode, class Build, class Encode>
+void cached_table(const PrecomputeStore* store, const std::string& key, Decode&& decode, Build&& build,
+                              Encode&& encode) {
+  if (store) {
+    if (auto bytes = store->load(key)) {
+      std::string why;
+      if (auto words = unframe_table(*bytes, why)) {
+        if (decode(*words)) return;
+        why = "contents do not fit the model";
+      }
+      store->rejected(key, why);
+    }
+  }
+  build();
+  if (store) store->save(key, frame_table(encode()));
+}
+
+}  // namespace
+
 std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshkit::Scene& model,
                                             const Vec3& antenna) {
   auto& d = *impl_;
@@ -621,31 +687,23 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
   if (!s->triangles.empty()) attach_triangles(d.device, *s, Vec3{0, 0, 0}, s->scene);
   rtcCommitScene(s->scene);
   check_device(d.device, s->name.c_str());
-  {
-    // Faces the antenna sees on its own vehicle (through its windows too:
-    // rays continue through every face until they leave the model).
-    std::vector<char> seen(s->face_plane.size(), 0);
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    for (const Vec3& dir : fibonacci_sphere(1 << 16)) {
-      float tnear = 0;
-      for (int hop = 0; hop < 64; ++hop) {
-        RTCRayHit rh = make_ray(antenna, dir, tnear, 1e3);
-        rtcIntersect1(s->scene, &ctx, &rh);
-        if (rh.hit.geomID == kNone) break;
-        seen[s->tri_face[rh.hit.primID]] = 1;
-        tnear = rh.ray.tfar + 1e-4f;
-      }
-    }
-    for (std::uint32_t f = 0; f < seen.size(); ++f)
-      if (seen[f]) s->seen_from_mount.push_back(f);
-  }
+  s->content_key = model_content_key(*s, materials_, rtcGetDeviceProperty(d.device, RTC_DEVICE_PROPERTY_VERSION));
+  const std::uint32_t faces = static_cast<std::uint32_t>(s->face_plane.size());
+  cached_table(
+      d.store.get(), "mount-" + ContentKey().add(s->content_key).add(&antenna, sizeof antenna).hex(),
+      [&](const std::vector<std::uint32_t>& w) { return decode_increasing(w, faces, s->seen_from_mount); },
+      [&] { s->seen_from_mount = faces_seen_from(*s, antenna); },
+      [&] { return s->seen_from_mount; });
   // Wedges only: a free border of a model's face is a modelling seam (an
   // open panel, a glass pane set into the body), not a thin screen.
   for (const Edge& e : extract_edges(*s, {}, true))
     if (e.face0 != e.face_n) s->model_edges.push_back(e);
   d.models.push_back(std::move(s));
   return static_cast<std::uint32_t>(d.models.size() - 1);
+}
+
+void TraceScene::set_precompute_store(std::shared_ptr<const PrecomputeStore> store) {
+  impl_->store = std::move(store);
 }
 
 std::size_t TraceScene::model_count() const { return impl_->models.size(); }
@@ -1046,6 +1104,54 @@ void build_bounce_table(const TraceScene::Shape& s, const std::vector<char>& see
     }
 }
 
+// Sequences (faces, order, sides: 5 words each), then each cell list (its
+// length, then its ids).
+std::vector<std::uint32_t> encode_bounce_table(const std::vector<TraceScene::BounceSequence>& seqs,
+                                               const std::vector<std::vector<std::uint32_t>>& cells) {
+  std::vector<std::uint32_t> w{static_cast<std::uint32_t>(seqs.size())};
+  for (const auto& q : seqs)
+    w.insert(w.end(), {q.faces[0], q.faces[1], q.faces[2], static_cast<std::uint32_t>(q.order), q.front});
+  w.push_back(static_cast<std::uint32_t>(cells.size()));
+  for (const auto& c : cells) {
+    w.push_back(static_cast<std::uint32_t>(c.size()));
+    w.insert(w.end(), c.begin(), c.end());
+  }
+  return w;
+}
+
+bool decode_bounce_table(const std::vector<std::uint32_t>& w, const TraceScene::Shape& s,
+                         std::vector<TraceScene::BounceSequence>& seqs, std::vector<std::vector<std::uint32_t>>& cells) {
+  const std::size_t faces = s.face_plane.size(), n_cells = std::size(kBounceLevels) * kBounceCells * kBounceCells;
+  std::size_t at = 0;
+  auto next = [&](std::uint32_t& v) { return at < w.size() ? (v = w[at++], true) : false; };
+  std::uint32_t n = 0;
+  if (!next(n) || n > (w.size() - 1) / 5) return false;
+  std::vector<TraceScene::BounceSequence> q(n);
+  for (auto& b : q) {
+    std::uint32_t order = 0;
+    if (!(next(b.faces[0]) && next(b.faces[1]) && next(b.faces[2]) && next(order) && next(b.front))) return false;
+    b.order = static_cast<int>(order);
+    if (order < 1 || order > 3 || b.front >= (1u << order)) return false;
+    for (std::uint32_t k = 0; k < order; ++k)
+      if (b.faces[k] >= faces) return false;
+  }
+  std::uint32_t m = 0;
+  if (!next(m) || m != n_cells) return false;
+  std::vector<std::vector<std::uint32_t>> c(m);
+  for (auto& list : c) {
+    std::uint32_t len = 0;
+    if (!next(len) || len > w.size() - at) return false;
+    list.assign(w.begin() + static_cast<std::ptrdiff_t>(at), w.begin() + static_cast<std::ptrdiff_t>(at + len));
+    at += len;
+    for (std::size_t k = 0; k < list.size(); ++k)
+      if (list[k] >= n || (k > 0 && list[k] <= list[k - 1])) return false;
+  }
+  if (at != w.size()) return false;
+  seqs = std::move(q);
+  cells = std::move(c);
+  return true;
+}
+
 }  // namespace
 
 std::shared_ptr<const void> TraceScene::static_memo(const std::string& key,
@@ -1068,7 +1174,11 @@ TraceScene::BounceQuery TraceScene::vehicle_bounce_sequences(std::size_t v, cons
       const std::string& m = materials_.at(s.face_material[f]);
       see_through[f] = m == "glass" || m == "plastic" || m == "textile";
     }
-    build_bounce_table(s, see_through, s.bounce_seq, s.bounce_near);
+    cached_table(
+        d.store.get(), "bounce-" + ContentKey().add(s.content_key).add_vector(see_through).hex(),
+        [&](const std::vector<std::uint32_t>& w) { return decode_bounce_table(w, s, s.bounce_seq, s.bounce_near); },
+        [&] { build_bounce_table(s, see_through, s.bounce_seq, s.bounce_near); },
+        [&] { return encode_bounce_table(s.bounce_seq, s.bounce_near); });
     s.bounce_all.resize(s.bounce_seq.size());
     for (std::uint32_t k = 0; k < s.bounce_all.size(); ++k) s.bounce_all[k] = k;
   });

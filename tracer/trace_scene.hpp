@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "meshkit/scene.hpp"
+#include "tracer/precompute.hpp"
 #include "tracer/vec.hpp"
 
 namespace raysweep::tracer {
@@ -78,6 +79,10 @@ class TraceScene {
   // A vehicle model in the library frame (meshkit::to_scene output) with its
   // antenna mount; returns the model index. Models are built once.
   std::uint32_t add_vehicle_model(const std::string& name, const meshkit::Scene& model, const Vec3& antenna);
+  // Where models' precomputed tables are kept between processes (see
+  // precompute.hpp); set before add_vehicle_model. Without one, every table
+  // is built in this process.
+  void set_precompute_store(std::shared_ptr<const PrecomputeStore> store);
   std::size_t model_count() const;
   const std::string& model_name(std::uint32_t model) const;
 
