@@ -137,13 +137,7 @@ void validate_channels(const hdf5::CheckedFile& file, const nlohmann::json& sche
 
 // Summary of a channel dataset (format checked by the caller).
 nlohmann::json channel_info(const InfoReader& r) {
-  nlohmann::json info;
-  info["file"] = r.path;
-  info["format"] = kDatasetFormat;
-  info["schema_version"] = r.str_attr("schema_version", "");
-  info["raysweep_version"] = r.str_attr("raysweep_version", "");
-  info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  nlohmann::json info = identity_info(r, kDatasetFormat);
   info["carrier_hz"] = r.num_attr<double>("/", "carrier_hz").value_or(0.0);
   info["bandwidth_hz"] = r.num_attr<double>("/", "bandwidth_hz").value_or(0.0);
 
@@ -209,6 +203,23 @@ nlohmann::json channel_info(const InfoReader& r) {
 }
 
 
+namespace {
+
+// " LOS n (x %) NLOSV ... NLOS ..." of a class count object.
+std::string class_shares(const nlohmann::json& counts, std::uint64_t links) {
+  std::string out;
+  char buf[96];
+  for (const char* c : {"LOS", "NLOSV", "NLOS"}) {
+    const auto n = counts.value(c, std::uint64_t{0});
+    std::snprintf(buf, sizeof buf, " %s %llu (%.1f %%)", c, static_cast<unsigned long long>(n),
+                  links ? 100.0 * static_cast<double>(n) / static_cast<double>(links) : 0.0);
+    out += buf;
+  }
+  return out;
+}
+
+}  // namespace
+
 std::string format_channel_info(const nlohmann::json& info) {
   auto num = [&](const char* k) { return info.value(k, nlohmann::json(0)).get<std::uint64_t>(); };
   auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
@@ -223,25 +234,10 @@ std::string format_channel_info(const nlohmann::json& info) {
   o << "links         " << links << " pair-frames (" << num("cached_links") << " cached, " << num("out_of_range_links")
     << " out of range)\n";
   o << "LoS classes  ";
-  if (info.contains("los_counts")) {
-    for (const char* c : {"LOS", "NLOSV", "NLOS"}) {
-      const auto n = info["los_counts"].value(c, std::uint64_t{0});
-      std::snprintf(buf, sizeof buf, " %s %llu (%.1f %%)", c, static_cast<unsigned long long>(n),
-                    links ? 100.0 * static_cast<double>(n) / static_cast<double>(links) : 0.0);
-      o << buf;
-    }
-  }
+  if (info.contains("los_counts")) o << class_shares(info["los_counts"], links);
   o << "\n";
-  if (info.contains("los_counts_fresnel")) {
-    o << "Fresnel zone ";
-    for (const char* c : {"LOS", "NLOSV", "NLOS"}) {
-      const auto n = info["los_counts_fresnel"].value(c, std::uint64_t{0});
-      std::snprintf(buf, sizeof buf, " %s %llu (%.1f %%)", c, static_cast<unsigned long long>(n),
-                    links ? 100.0 * static_cast<double>(n) / static_cast<double>(links) : 0.0);
-      o << buf;
-    }
-    o << "  (0.6 F1)\n";
-  }
+  if (info.contains("los_counts_fresnel"))
+    o << "Fresnel zone " << class_shares(info["los_counts_fresnel"], links) << "  (0.6 F1)\n";
   std::snprintf(buf, sizeof buf, "paths         %llu (%.2f per link, %.2f per in-range link)\n",
                 static_cast<unsigned long long>(num("paths")), real("mean_paths_per_link"),
                 real("mean_paths_per_in_range_link"));

@@ -40,13 +40,7 @@ void validate_ns3_table(const hdf5::CheckedFile& file, const nlohmann::json& sch
 
 // Summary of an ns-3 lookup table (format checked by the caller).
 nlohmann::json ns3_table_info(const InfoReader& r) {
-  nlohmann::json info;
-  info["file"] = r.path;
-  info["format"] = kNs3TableFormat;
-  info["schema_version"] = r.str_attr("schema_version", "");
-  info["raysweep_version"] = r.str_attr("raysweep_version", "");
-  info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  nlohmann::json info = identity_info(r, kNs3TableFormat);
   for (const char* k : {"carrier_hz", "bandwidth_hz", "time_start_s", "time_end_s", "frame_step_s"})
     info[k] = r.num_attr<double>("/", k).value_or(0.0);
   const auto source = r.num_attr<std::uint64_t>("/", "gain_source").value_or(255);

@@ -239,13 +239,7 @@ void validate_sinr(const hdf5::CheckedFile& file, const nlohmann::json& schema, 
 
 // Summary of a SINR outcome file (format checked by the caller).
 nlohmann::json sinr_info(const InfoReader& r) {
-  nlohmann::json info;
-  info["file"] = r.path;
-  info["format"] = sinr::kSinrFormat;
-  info["schema_version"] = r.str_attr("schema_version", "");
-  info["raysweep_version"] = r.str_attr("raysweep_version", "");
-  info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  nlohmann::json info = identity_info(r, sinr::kSinrFormat);
   info["channel_model"] = r.str_attr("channel_model", "");
   info["los_from_ray"] = r.num_attr<std::uint64_t>("/", "los_from_ray").value_or(0) != 0;
   for (const char* k :

@@ -318,6 +318,17 @@ std::string human_bytes(double b) {
   return buf;
 }
 
+nlohmann::json identity_info(const InfoReader& r, const char* format) {
+  nlohmann::json info;
+  info["file"] = r.path;
+  info["format"] = format;
+  info["schema_version"] = r.str_attr("schema_version", "");
+  info["raysweep_version"] = r.str_attr("raysweep_version", "");
+  info["git_hash"] = r.str_attr("git_hash", "");
+  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  return info;
+}
+
 // The first lines of both formats' summaries: file, completeness, format and writer.
 std::string identity_lines(const nlohmann::json& info) {
   auto text = [&](const char* k) { return info.value(k, std::string()); };

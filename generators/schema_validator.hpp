@@ -210,6 +210,9 @@ void add_node_kinds(nlohmann::json& info, const InfoReader& r);
 std::string human_bytes(double b);
 // The first lines of both formats' summaries: file, completeness, format and writer.
 std::string identity_lines(const nlohmann::json& info);
+// The summary's identity fields, which every format has: file, format, schema
+// version, writer version and commit, completeness.
+nlohmann::json identity_info(const InfoReader& r, const char* format);
 
 // Each format's rules beyond the schema, summary and summary text.
 void validate_channels(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
