@@ -8,10 +8,8 @@
 #include <filesystem>
 
 #include "meshkit/gltf_io.hpp"
-#include "pipeline/config.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/tracer.hpp"
 
@@ -88,24 +86,16 @@ json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>
             {"diffuse_paths", snap.stats.diffuse_paths}}}};
 }
 
-tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {
-  if (spec == "80211p") return tracer::ofdm_80211p(carrier_hz);
-  int mu = 0, nrb = 0;
-  char tail = 0;
-  if (std::sscanf(spec.c_str(), "nr:%d:%d%c", &mu, &nrb, &tail) == 2) return tracer::ofdm_nr(mu, nrb, carrier_hz);
-  throw std::invalid_argument("--cfr '" + spec + "': expected 80211p or nr:NUMEROLOGY:N_RB (e.g. nr:2:10)");
-}
-
-json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
+json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto ext = fs::path(args.out).extension().string();
   if (ext == ".h5")
     throw std::invalid_argument(args.out + ": HDF5 output comes with the dataset schema (raysweep sweep); "
                                 "write .json for a single snapshot");
   if (ext != ".json") throw std::invalid_argument(args.out + ": output must end in .json");
-  const TraceSettings settings = load_trace_config(args.config);
+  const TraceSettings& settings = all.trace;
   std::optional<tracer::OfdmGrid> grid;
-  if (!args.cfr.empty()) grid = parse_ofdm_grid(args.cfr, settings.radio.frequency_hz);
+  if (!args.cfr.empty()) grid = tracer::ofdm_grid(tracer::parse_ofdm_grid_spec(args.cfr, "--cfr"), settings.radio.frequency_hz);
 
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file))
@@ -113,7 +103,7 @@ json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv
   tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
 
   std::vector<InputFile> inputs{{"scene", scene_file.string()}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
   VehicleLibrary library(args.vehicles, args.lod);
   std::vector<PoseRow> poses;
   if (!args.poses.empty()) {

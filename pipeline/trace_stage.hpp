@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pipeline/settings/settings.hpp"
 #include "tracer/channel.hpp"
 #include "tracer/solver.hpp"
 
@@ -18,20 +19,17 @@ struct TraceArgs {
   std::string poses;     // CSV id,class,x,y,heading_deg,speed_mps[,z]
   std::string nodes;     // CSV id,x,y,z
   std::string out;       // .json
-  std::string config;    // TOML ([radio], [tracer], [materials.*])
   int lod = -1;          // vehicle LOD; -1: each entry's default
   std::string exclude_objects;  // regex on static object ids to leave out (e.g. "^mesh-car_")
   std::string cfr;              // "" | "80211p" | "nr:MU:NRB": add each pair's frequency response
 };
-
-// "80211p" or "nr:MU:NRB" at `carrier_hz`; std::invalid_argument otherwise.
-tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz);
 
 // Per-pair JSON as documented for `raysweep trace` (names resolved).
 nlohmann::json snapshot_json(const tracer::Snapshot& snap, const std::vector<tracer::Node>& nodes,
                              const std::vector<std::string>& object_names,
                              const std::vector<std::string>& material_names);
 
-nlohmann::json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv);
+// [radio], [tracer] and [materials.<name>] from `settings`.
+nlohmann::json run_trace_stage(const TraceArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

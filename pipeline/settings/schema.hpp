@@ -26,7 +26,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "pipeline/config.hpp"
+#include "pipeline/settings/config_error.hpp"
 
 namespace raysweep::pipeline::schema {
 

@@ -1,4 +1,4 @@
-#include "pipeline/config_schema.hpp"
+#include "pipeline/settings/schema.hpp"
 
 #include <algorithm>
 #include <cmath>
