@@ -158,7 +158,7 @@ namespace {
 // stages, and the summary the stages add to.
 struct CityRun {
   CityRun(const CityRunArgs& a, const std::vector<std::string>& v)
-      : args(a), argv(v), settings(load_city_settings(a.city)), city(settings.city), root(settings.effective) {}
+      : args(a), argv(v), settings(load_city_settings(a.city, a.set)), city(settings.city), root(settings.effective) {}
 
   const CityRunArgs& args;
   const std::vector<std::string>& argv;

@@ -21,6 +21,7 @@ namespace raysweep::pipeline {
 
 struct CityRunArgs {
   std::string city;  // CITY.toml
+  std::vector<std::string> set;  // `--set TABLE.KEY=VALUE` over it (settings/overrides.hpp)
   std::string out;   // default: [city] out, else out/<name>
   bool resume = false;
   bool force = false;  // run every stage even when up to date

@@ -61,6 +61,12 @@ std::map<std::string, double> parse_class_mix(const std::string& s) {
 namespace rp = raysweep::pipeline;
 using Argv = std::vector<std::string>;
 
+// `--set TABLE.KEY=VALUE` (settings/overrides.hpp), on the commands that trace.
+void add_set_option(CLI::App* app, std::vector<std::string>& sets) {
+  app->add_option("--set", sets, "TABLE.KEY=VALUE: change one setting of the config, checked like the file (repeatable)")
+      ->allow_extra_args(false);
+}
+
 // One subcommand: its options, registered on the app, and what runs when it
 // is the one given (returns the exit status). The options live in a
 // shared_ptr the run function holds, so CLI11 can write into them.
@@ -130,6 +136,7 @@ Subcommand vehicles_command(CLI::App& app) {
 Subcommand trace_command(CLI::App& app) {
   auto trace = std::make_shared<rp::TraceArgs>();
   auto config = std::make_shared<std::string>();
+  auto sets = std::make_shared<std::vector<std::string>>();
   auto* tc = app.add_subcommand("trace", "trace one snapshot: every antenna pair's paths, gains and LoS class");
   tc->add_option("--scene", trace->scene, "scene folder (from `raysweep scene`)")->required();
   tc->add_option("--vehicles", trace->vehicles, "vehicle library folder (default: built-in parametric models)");
@@ -141,8 +148,9 @@ Subcommand trace_command(CLI::App& app) {
   tc->add_option("--exclude-objects", trace->exclude_objects,
                  "regex on static object ids to leave out (e.g. '^mesh-car_' for Sionna's placeholder cars)");
   tc->add_option("--cfr", trace->cfr, "add each pair's frequency response: 80211p or nr:MU:NRB (e.g. nr:2:10)");
-  return {tc, [trace, config](const Argv& args) {
-            const auto summary = rp::run_trace_stage(*trace, rp::load_settings(*config), args);
+  add_set_option(tc, *sets);
+  return {tc, [trace, config, sets](const Argv& args) {
+            const auto summary = rp::run_trace_stage(*trace, rp::load_settings(*config, *sets), args);
             std::cout << trace->out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
                       << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
                       << " paths\n";
@@ -208,6 +216,7 @@ Subcommand sweep_command(CLI::App& app) {
   struct Options {
     rp::SweepArgs sweep;
     std::string config, shard;
+    std::vector<std::string> sets;
   };
   auto o = std::make_shared<Options>();
   auto& sweep = o->sweep;
@@ -221,10 +230,11 @@ Subcommand sweep_command(CLI::App& app) {
   sw->add_option("--config", o->config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
   sw->add_flag("--resume", sweep.resume, "continue an interrupted run (keeps its committed blocks)");
   sw->add_option("--shard", o->shard, "I/N: trace only blocks b with b mod N = I into a shard file (raysweep merge)");
+  add_set_option(sw, o->sets);
   return {sw, [o](const Argv& args) {
             auto& sweep = o->sweep;
             if (!o->shard.empty()) sweep.shard = rp::parse_shard(o->shard);
-            const auto summary = rp::run_sweep_stage(sweep, rp::load_settings(o->config), args);
+            const auto summary = rp::run_sweep_stage(sweep, rp::load_settings(o->config, o->sets), args);
             std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"]
                       << " pair-channels (" << summary["traced_links"] << " traced), " << summary["bytes"]
                       << " bytes\n";
@@ -270,6 +280,7 @@ Subcommand run_command(CLI::App& app) {
   rc->add_option("--out", city.out, "output folder (default: [city] out or out/<name>)");
   rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
   rc->add_flag("--force", city.force, "run every stage even when up to date");
+  add_set_option(rc, city.set);
   rc->add_option("--until", city.until, "stop after this stage: scene, vehicles, traffic or sweep");
   rc->add_option("--shard", o->shard, "I/N: trace shard I of N into <out>/shards/dataset.I-of-N.h5 and stop");
   rc->add_flag("--merge", city.merge, "merge <out>/shards/ into <out>/dataset.h5, then run the later stages");
@@ -405,6 +416,7 @@ Subcommand tradeoff_command(CLI::App& app) {
       ->capture_default_str();
   to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
   to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
+  add_set_option(to, tradeoff.set);
   return {to, [o](const Argv& args) {
             o->tradeoff.chart = !o->no_chart;
             const auto r = rp::run_tradeoff_stage(o->tradeoff, args);
@@ -470,15 +482,17 @@ Subcommand render_command(CLI::App& app) {
 Subcommand config_command(CLI::App& app) {
   struct Options {
     std::string file;
+    std::vector<std::string> sets;
     bool docs = false;
   };
   auto o = std::make_shared<Options>();
   auto* cf = app.add_subcommand("config", "check a city/stage config and print its effective settings (JSON)");
   cf->add_option("file", o->file, "city.toml or stage config (none: the defaults)");
   cf->add_flag("--docs", o->docs, "print the schema as Markdown (docs/config.md)");
+  add_set_option(cf, o->sets);
   return {cf, [o](const Argv&) {
             if (o->docs) std::cout << rp::config_docs();
-            else std::cout << rp::effective_config(o->file).dump(2) << "\n";
+            else std::cout << rp::effective_config(o->file, o->sets).dump(2) << "\n";
             return 0;
           }};
 }

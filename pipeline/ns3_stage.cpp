@@ -21,7 +21,8 @@ json run_ns3_table_stage(const Ns3TableArgs& args, const Settings& all, const st
   const json config = settings.to_json();
   std::vector<InputFile> inputs{{"channels", args.channels}};
   if (!all.file.empty()) inputs.push_back({"config", all.file});
-  const json prov = provenance("ns3-table", inputs, config, recorded_command(argv));
+  json prov = provenance("ns3-table", inputs, config, recorded_command(argv));
+  all.record_sets(prov);
 
   generators::Ns3TableHeader header;
   stamp_header(header, kVersion, kGitHash, config, prov);

@@ -413,7 +413,8 @@ json run_radiomap_stage(const RadioMapArgs& args, const Settings& all, const std
   config["radiomap"] = s.to_json();
   config["radiomap"]["region"] = region.name;
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
-  const json prov = provenance("radiomap", inputs, config, argv);
+  json prov = provenance("radiomap", inputs, config, argv);
+  all.record_sets(prov);
   write_radiomap_vdb(args.out, s.voxel_m, s.z_min_m, o.voxels, maps.grids,
                      vdb_meta(trace, s, region.name, o.voxels.size(), config, prov, check));
 
@@ -466,13 +467,42 @@ bool frame_for_render(const fs::path& dataset, const Settings& city, const std::
 
 }  // namespace
 
+namespace {
+
+// The --set options a city's map was made with (<out>/.stamps/radiomap.json,
+// absent without any): changing them redoes the map as editing the file does.
+bool sets_changed(const Settings& city, const fs::path& record) {
+  json recorded = json::array();
+  std::ifstream in(record);
+  if (in) {
+    try {
+      recorded = json::parse(in).value("set", json::array());
+    } catch (const json::exception&) {
+      return true;
+    }
+  }
+  return recorded != json(city.sets);
+}
+
+void record_sets(const Settings& city, const fs::path& record) {
+  if (city.sets.empty()) {
+    fs::remove(record);
+    return;
+  }
+  fs::create_directories(record.parent_path());
+  write_file_atomic(record, json{{"set", city.sets}}.dump() + "\n");
+}
+
+}  // namespace
+
 json run_city_radiomap(const Settings& city, const std::string& out, const std::string& scene_dir,
                        const std::string& net, bool force, const std::vector<std::string>& argv) {
   const fs::path vdb = fs::path(out) / "radiomap.vdb", png = fs::path(out) / "radiomap.png";
   const fs::path render = fs::path(out) / "render.png";
   const auto newest_input = std::max(fs::last_write_time(fs::path(scene_dir) / "scene.glb"), fs::last_write_time(city.file));
   json summary = {{"vdb", vdb.string()}};
-  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input) {
+  const fs::path sets_record = fs::path(out) / ".stamps" / "radiomap.json";
+  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input || sets_changed(city, sets_record)) {
     RadioMapArgs a;
     a.scene = scene_dir;
     a.net = net;
@@ -480,6 +510,7 @@ json run_city_radiomap(const Settings& city, const std::string& out, const std::
     if (city.radiomap.png) a.png = png.string();
     spdlog::info("radiomap: {}", vdb.string());
     summary = run_radiomap_stage(a, city, argv);
+    record_sets(city, sets_record);
   } else {
     spdlog::info("radiomap: up to date ({})", vdb.string());
   }

@@ -156,6 +156,7 @@ json run_scene_stage(const SceneArgs& args, const Settings& settings, const std:
   json& manifest = built.manifest;
   describe_scene(scene, manifest);
   manifest["provenance"] = provenance("scene", inputs, cfg.to_json(), argv);
+  settings.record_sets(manifest["provenance"]);
 
   StagedDirectory out(args.out);
   meshkit::GltfOptions gopt;

@@ -56,15 +56,16 @@ SinrSchedule sinr_schedule(const SinrArgs& args, const gs::ChannelTrace& trace, 
   return s;
 }
 
-gs::SinrHeader sinr_header(const SinrArgs& args, const std::string& config_file, const SinrSettings& settings, const SinrModel& model,
+gs::SinrHeader sinr_header(const SinrArgs& args, const Settings& all, const SinrSettings& settings, const SinrModel& model,
                            const gs::SinrConfig& cfg, const gs::ChannelTrace& trace,
                            const std::vector<std::string>& argv) {
   json config = settings.to_json();
   config["channel_model"] = model.label();
   std::vector<InputFile> inputs{{"channels", args.channels}};
-  if (!config_file.empty()) inputs.push_back({"config", config_file});
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.schedule_from.empty()) inputs.push_back({"schedule", args.schedule_from});
-  const json prov = provenance("sinr", inputs, config, recorded_command(argv));
+  json prov = provenance("sinr", inputs, config, recorded_command(argv));
+  all.record_sets(prov);
 
   gs::SinrHeader header;
   stamp_header(header, kVersion, kGitHash, config, prov);
@@ -128,7 +129,7 @@ json run_sinr_stage(const SinrArgs& args, const Settings& all, const std::vector
   cfg.nr.carrier_hz = trace.carrier_hz();
   const auto channel = gs::make_channel_model(model.kind, trace, settings.stochastic);
   const SinrSchedule schedule = sinr_schedule(args, trace, cfg);
-  const gs::SinrHeader header = sinr_header(args, all.file, settings, model, cfg, trace, argv);
+  const gs::SinrHeader header = sinr_header(args, all, settings, model, cfg, trace, argv);
 
   StagedFile staged{fs::path(args.out)};
   gs::SinrRunStats stats;

@@ -144,6 +144,7 @@ SweepRunId identify_run(const SweepArgs& args, const Settings& all, const fs::pa
   id.config["sweep"] = all.sweep.to_json();
   id.config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
   id.prov = provenance("sweep", inputs, id.config, recorded_command(argv));
+  all.record_sets(id.prov);
   id.prov["embree"] = tracer::embree_version();
   id.run_key = json{{"config", id.config}, {"inputs", id.prov["inputs"]}, {"version", kVersion}}.dump();
   return id;

@@ -156,6 +156,7 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
   config["cfr"] = args.cfr;
   out["radio"] = config["radio"];
   out["provenance"] = provenance("trace", inputs, config, argv);
+  all.record_sets(out["provenance"]);
   out["provenance"]["embree"] = tracer::embree_version();
   if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
   write_file_atomic(args.out, out.dump(1) + "\n");

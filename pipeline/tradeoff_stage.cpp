@@ -235,7 +235,7 @@ TradeoffInputs resolve_inputs(const TradeoffArgs& args) {
         !args.rsus.empty() || !args.vtypes.empty())
       throw std::invalid_argument("tradeoff: give either a city file or --scene/--fcd/--vehicles/--config, not both");
     if (!fs::exists(args.city)) throw std::invalid_argument(args.city + ": city file not found");
-    in.settings = load_city_settings(args.city);
+    in.settings = load_city_settings(args.city, args.set);
     const CityOutputs o = city_outputs(in.settings, args.city_out);
     in.scene_dir = o.scene;
     in.vehicles_dir = o.vehicles;
@@ -817,6 +817,7 @@ json tradeoff_provenance(const TradeoffArgs& args, const TradeoffInputs& in, con
                           {"repeats", std::max(1, args.repeats)},
                           {"target_p95_db", args.target_p95_db}};
   json prov = provenance("tradeoff", inputs, cfg_json, recorded_command(argv));
+  in.settings.record_sets(prov);
   prov["embree"] = tracer::embree_version();
   return prov;
 }
@@ -912,7 +913,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   const auto t_start = std::chrono::steady_clock::now();
   TradeoffInputs in = resolve_inputs(args);
   const GridAxes axes = parse_axes(args);
-  if (args.city.empty()) in.settings = load_settings(in.config);
+  if (args.city.empty()) in.settings = load_settings(in.config, args.set);
   const TraceSettings& settings = in.settings.trace;
   const SweepSettings& cfg = in.settings.sweep;
   tracer::validate(settings.tracer, settings.radio);

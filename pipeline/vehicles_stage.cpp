@@ -256,6 +256,7 @@ json run_vehicles_stage(const VehiclesArgs& args, const Settings& settings, cons
                    {"vehicles", list},
                    {"custom_materials", custom_materials_json()},
                    {"provenance", provenance("vehicles", inputs, effective.to_json(), argv)}};
+  settings.record_sets(manifest["provenance"]);
   // Build times vary run to run; keep them out of the byte-compared manifest.
   json timings = json::object();
   for (auto& v : manifest["vehicles"]) {

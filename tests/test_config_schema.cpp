@@ -289,3 +289,51 @@ TEST(ConfigSchema, NoStageReadsTomlByHand) {
     EXPECT_FALSE(std::regex_search(read_text(e.path()), toml_use)) << name << " uses toml++ directly";
   }
 }
+
+TEST(ConfigSchema, SetChangesTheParsedFileAndIsCheckedLikeIt) {
+  const fs::path dir = scratch_dir("cfg");
+  const std::string c = (dir / "c.toml").string();
+  write_text(c, "[tracer]\nmax_depth = 2\n[sweep]\nbegin_s = 10\n");
+  // Values are TOML; a word that is not is a string; a later option wins.
+  const std::vector<std::string> sets = {"tracer.max_depth=3",       "tracer.diffuse=false", "radio.antenna=halfwave",
+                                         "sweep.ids=[\"a\", \"b\"]", "sweep.end_s=40",       "tracer.max_depth = 4",
+                                         "materials.glass.eps_r=5.5", "sweep.cfr=nr:2:10"};
+  const Settings s = load_settings(c, sets);
+  EXPECT_EQ(s.trace.tracer.max_depth, 4);
+  EXPECT_FALSE(s.trace.tracer.diffuse);
+  EXPECT_EQ(s.trace.radio.antenna.pattern, raysweep::tracer::AntennaPattern::halfwave_dipole);
+  EXPECT_EQ(s.sweep.ids, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(s.sweep.begin_s, 10);  // the file's other keys stay
+  EXPECT_EQ(s.sweep.end_s, 40);
+  ASSERT_TRUE(s.trace.tracer.materials.at("glass").eps_r.has_value());
+  EXPECT_EQ(*s.trace.tracer.materials.at("glass").eps_r, 5.5);
+  ASSERT_TRUE(s.sweep.cfr.has_value());
+  EXPECT_EQ(s.sweep.cfr->n_rb, 10);
+  // The effective config holds them (with or without a file); provenance records the options too.
+  EXPECT_EQ(s.effective["tracer"]["max_depth"], 4);
+  EXPECT_EQ(s.effective["sweep"]["cfr"], "nr:2:10");
+  EXPECT_EQ(effective_config(c, {"sweep.end_s=40"})["sweep"]["begin_s"], 10);
+  EXPECT_EQ(effective_config("", {"sweep.end_s=40"})["sweep"]["end_s"], 40);
+  EXPECT_EQ(load_settings("", {"ns3.subcarriers_per_band=2"}).ns3.subcarriers_per_band, 2u);
+  json prov = json::object();
+  s.record_sets(prov);
+  EXPECT_EQ(prov["set"], json(sets));
+  // Errors name the option where a file names its line.
+  auto error = [&](const std::vector<std::string>& bad) {
+    try {
+      load_settings(c, bad);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(error({"tracer.max_depth=17"}),
+            "--set tracer.max_depth: tracer.max_depth: expected an integer in [0, 16], got 17");
+  EXPECT_EQ(error({"tracer.max_dept=3"}),
+            "--set tracer.max_dept: tracer.max_dept: unknown key (did you mean 'max_depth'?)");
+  EXPECT_EQ(error({"tracr.max_depth=3"}), "--set tracr.max_depth: unknown table [tracr] (did you mean [tracer]?)");
+  EXPECT_EQ(error({"tracer.diffuse=maybe"}), "--set tracer.diffuse: tracer.diffuse: expected true or false, got \"maybe\"");
+  EXPECT_EQ(error({"sweep.end_s=5"}), "--set sweep.end_s: sweep.end_s: must not be before sweep.begin_s");
+  EXPECT_EQ(error({"tracer"}), "--set tracer: expected TABLE.KEY=VALUE");
+  EXPECT_EQ(error({"max_depth=3"}), "--set max_depth=3: expected TABLE.KEY=VALUE");
+}

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 
+#include "pipeline/settings/overrides.hpp"
 #include "pipeline/settings/tables.hpp"
 
 namespace raysweep::pipeline {
@@ -10,14 +11,15 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 using namespace schema;
 
-ConfigFile::ConfigFile(const std::string& path) {
+ConfigFile::ConfigFile(const std::string& path, const std::vector<std::string>& sets) {
   src_.file = path;
-  src_.dir = fs::absolute(path).parent_path();
+  src_.dir = path.empty() ? fs::current_path() : fs::absolute(path).parent_path();
   try {
-    root_ = toml::parse_file(path);
+    if (!path.empty()) root_ = toml::parse_file(path);
   } catch (const toml::parse_error& e) {
     throw ConfigError(path + ":" + std::to_string(e.source().begin.line) + ": " + std::string(e.description()));
   }
+  apply_overrides(root_, sets);
   std::vector<std::string> names;
   for (const auto* t : config_tables()) names.push_back(t->name());
   const At top{&src_, ""};
@@ -46,8 +48,8 @@ void ConfigFile::fail(const std::string& table, const std::string& key, const st
   throw ConfigError(src_.file + ": " + at.key + ": " + msg);
 }
 
-json effective_config(const std::string& path) {
-  if (!path.empty()) return ConfigFile(path).effective();
+json effective_config(const std::string& path, const std::vector<std::string>& sets) {
+  if (!path.empty() || !sets.empty()) return ConfigFile(path, sets).effective();
   json out = json::object();
   for (const auto* t : config_tables()) out[t->name()] = t->effective(nullptr, At{});
   return out;

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -12,10 +13,12 @@ namespace raysweep::pipeline {
 
 // TOML syntax, unknown tables, and every key of every table (unknown, wrong
 // type, out of range) are checked on construction, so that a typo anywhere
-// fails before any stage runs. Throws ConfigError naming file, line and key.
+// fails before any stage runs. `sets` (`--set TABLE.KEY=VALUE`, overrides.hpp)
+// change the parsed file before the checks; an empty path is an empty file.
+// Throws ConfigError naming file, line and key (or the --set option).
 class ConfigFile {
  public:
-  explicit ConfigFile(const std::string& path);
+  explicit ConfigFile(const std::string& path, const std::vector<std::string>& sets = {});
   // Reads table `t` into `cfg` when the file has it; returns whether it has.
   template <class Cfg>
   bool read(const schema::Table<Cfg>& t, Cfg& cfg) const {
@@ -36,7 +39,7 @@ class ConfigFile {
   nlohmann::json effective_;
 };
 
-// ConfigFile(path).effective(); the defaults for an empty path.
-nlohmann::json effective_config(const std::string& path);
+// ConfigFile(path, sets).effective(); the defaults for an empty path and no sets.
+nlohmann::json effective_config(const std::string& path, const std::vector<std::string>& sets = {});
 
 }  // namespace raysweep::pipeline

@@ -46,6 +46,13 @@ struct At {
   [[noreturn]] void expected(const toml::node& n, const std::string& expect) const;
 };
 
+// A value given on the command line (`--set TABLE.KEY=VALUE`) rather than in
+// the file carries "--set TABLE.KEY" as its source: errors name that instead
+// of a file line, and its relative paths start at the working directory.
+// Returns that source, or nullopt for a value from the file.
+std::optional<std::string> set_option(const toml::node& n);
+inline constexpr const char* kSetPrefix = "--set ";
+
 // The value as an error message shows it: 3, -1.5, "text", true, an array, a table.
 std::string describe(const toml::node& n);
 // The closest of `names` to `word` when it is a plausible typo, else "".

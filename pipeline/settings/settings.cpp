@@ -57,7 +57,7 @@ void read_city(const ConfigFile& file, CitySettings& c) {
 // Every stage table, and the checks of settings that depend on each other
 // (the schema checks each key alone).
 void read_stages(const ConfigFile& file, Settings& s) {
-  const std::string& path = file.path();
+  const std::string path = file.path().empty() ? std::string("--set") : file.path();
   file.read(scene_table(), s.scene);
   file.read(vehicles_table(), s.vehicles);
   file.read(traffic_table(), s.traffic);
@@ -89,20 +89,26 @@ Settings defaults() {
 
 }  // namespace
 
-Settings load_settings(const std::string& path) {
-  if (path.empty()) return defaults();
-  const ConfigFile file(path);
+void Settings::record_sets(json& provenance) const {
+  if (!sets.empty()) provenance["set"] = sets;
+}
+
+Settings load_settings(const std::string& path, const std::vector<std::string>& sets) {
+  if (path.empty() && sets.empty()) return defaults();
+  const ConfigFile file(path, sets);
   Settings s;
   s.file = path;
+  s.sets = sets;
   s.effective = file.effective();
   read_stages(file, s);
   return s;
 }
 
-Settings load_city_settings(const std::string& path) {
-  const ConfigFile file(path);
+Settings load_city_settings(const std::string& path, const std::vector<std::string>& sets) {
+  const ConfigFile file(path, sets);
   Settings s;
   s.file = path;
+  s.sets = sets;
   s.effective = file.effective();
   read_city(file, s.city);
   read_stages(file, s);

@@ -28,6 +28,7 @@ Value<std::string> path() {
   v.read = [inner](const toml::node& n, const At& at) {
     const std::string p = inner(n, at);
     if (p.empty() || fs::path(p).is_absolute() || !at.src) return p;
+    if (set_option(n)) return fs::absolute(p).lexically_normal().string();
     return (at.src->dir / p).lexically_normal().string();
   };
   return v;
