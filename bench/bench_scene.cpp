@@ -38,10 +38,10 @@ void run_stage(benchmark::State& state, const fs::path& osm, const fs::path& net
   args.osm = osm.string();
   args.net = net.string();
   args.out = out.string();
-  args.config = cfg.string();
   args.preview = false;  // time the stage, not matplotlib
+  const auto settings = raysweep::pipeline::load_settings(cfg.string());
   nlohmann::json manifest;
-  for (auto _ : state) manifest = raysweep::pipeline::run_scene_stage(args, {"bench"});
+  for (auto _ : state) manifest = raysweep::pipeline::run_scene_stage(args, settings, {"bench"});
   state.counters["buildings"] = manifest["buildings"]["kept"].get<double>();
   state.counters["triangles"] = manifest["triangle_count"].get<double>();
   state.counters["peak_rss_MiB"] = peak_rss_mib();

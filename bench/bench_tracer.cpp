@@ -123,7 +123,7 @@ std::unique_ptr<SceneCase> load_demo() {
     args.net = (d / "kirchberg.net.xml").string();
     args.out = out.string();
     args.preview = false;
-    pipeline::run_scene_stage(args, {"bench_tracer"});
+    pipeline::run_scene_stage(args, pipeline::Settings{}, {"bench_tracer"});
     c->static_scene = meshkit::read_glb((out / "scene.glb").string());
     c->net = meshkit::read_sumo_network(args.net);
   } catch (const std::exception& e) {

@@ -24,7 +24,7 @@ void BM_LoadSegment(benchmark::State& state, const std::string& vclass, const fs
     return;
   }
   spdlog::set_level(spdlog::level::err);
-  pipeline::VehiclesConfig cfg;
+  pipeline::VehiclesSettings cfg;
   std::size_t tris = 0;
   for (auto _ : state) tris = pipeline::build_vehicle(vclass, vclass, file.string(), cfg).model.triangle_count();
   state.counters["triangles"] = static_cast<double>(tris);
@@ -36,7 +36,7 @@ void BM_Lods(benchmark::State& state, const std::string& vclass, const fs::path&
     return;
   }
   spdlog::set_level(spdlog::level::err);
-  pipeline::VehiclesConfig cfg;
+  pipeline::VehiclesSettings cfg;
   const auto model = pipeline::build_vehicle(vclass, vclass, file.string(), cfg).model;
   double h_last = 0;
   std::size_t t_last = 0;

@@ -10,8 +10,6 @@
 #include <sstream>
 
 #include "generators/dataset_schema.hpp"
-#include "pipeline/config.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/radiomap_stage.hpp"
@@ -21,7 +19,6 @@
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
 #include "pipeline/version.hpp"
@@ -40,12 +37,6 @@ std::string tables_text(const json& effective, const std::vector<std::string>& n
   std::string s;
   for (const auto& n : names) s += "[" + n + "]\n" + effective.at(n).dump() + "\n";
   return s;
-}
-
-fs::path relative_to(const fs::path& file, const std::string& p) {
-  if (p.empty()) return {};
-  const fs::path q(p);
-  return q.is_absolute() ? q : (file.parent_path() / q).lexically_normal();
 }
 
 class Stamps {
@@ -71,39 +62,15 @@ class Stamps {
 
 }  // namespace
 
-CityConfig load_city_config(const std::string& path) {
-  const ConfigFile file(path);
-  CityConfig c;
-  if (!file.read(city_table(), c)) throw ConfigError(path + ": no [city] table (name, osm, net)");
-  TrafficSettings traffic;
-  file.read(traffic_table(), traffic);
-  c.sumocfg = traffic.sumo.sumocfg;
-  c.fcd = traffic.fcd;
-  if (c.osm.empty() == c.mitsuba.empty())
-    file.fail("city", c.osm.empty() ? "osm" : "mitsuba", "give exactly one of city.osm and city.mitsuba");
-  if (!c.sumocfg.empty() && !c.fcd.empty())
-    file.fail("traffic", "fcd", "give at most one of traffic.sumocfg and traffic.fcd");
-  for (const auto* p : {&c.osm, &c.net, &c.mitsuba, &c.rsus, &c.sumocfg, &c.fcd})
-    if (!p->empty() && !fs::exists(*p))
-      throw ConfigError(path + ": input " + *p + " not found" +
-                        (p->find("shared/data") != std::string::npos
-                             ? " (this recipe reads the third-party data in ../shared/data next to the checkout)"
-                             : ""));
-  c.out = c.out.empty() ? ("out/" + c.name) : relative_to(fs::current_path() / "x", c.out).string();
-  return c;
-}
-
 namespace {
 
-TrafficArgs load_traffic_args(const std::string& path, const CityConfig& city, const std::string& out) {
-  TrafficSettings t;
-  const ConfigFile file(path);
-  file.read(traffic_table(), t);
-  TrafficArgs a = t.sumo;
-  a.net = city.net;
-  a.sumocfg = city.sumocfg;
+// SUMO's run: [traffic] with the city's network and demand (the time span
+// was checked by load_city_settings).
+TrafficArgs traffic_args(const Settings& s, const std::string& out) {
+  TrafficArgs a = s.traffic.sumo;
+  a.net = s.city.net;
+  a.sumocfg = s.city.sumocfg;
   a.out = out;
-  if (!(a.end_s > a.begin_s)) file.fail("traffic", "end_s", "must be after traffic.begin_s");
   return a;
 }
 
@@ -158,8 +125,9 @@ std::vector<std::string> shard_files(const fs::path& dir, std::uint32_t count, c
 
 }  // namespace
 
-CityOutputs city_outputs(const std::string& city_file, const std::string& out_dir) {
-  const CityConfig city = load_city_config(city_file);
+CityOutputs city_outputs(const Settings& settings, const std::string& out_dir) {
+  const CitySettings& city = settings.city;
+  const std::string& city_file = settings.file;
   CityOutputs o;
   const fs::path out = out_dir.empty() ? fs::path(city.out) : fs::path(out_dir);
   o.out = out.string();
@@ -189,15 +157,15 @@ namespace {
 // One `raysweep run`: the city, its checked settings, the stamps of its
 // stages, and the summary the stages add to.
 struct CityRun {
-  CityRun(const CityRunArgs& a, const std::vector<std::string>& v) : args(a), argv(v), city(load_city_config(a.city)) {}
+  CityRun(const CityRunArgs& a, const std::vector<std::string>& v)
+      : args(a), argv(v), settings(load_city_settings(a.city, a.set)), city(settings.city), root(settings.effective) {}
 
   const CityRunArgs& args;
   const std::vector<std::string>& argv;
-  CityConfig city;
+  Settings settings;  // every table, read once
+  CitySettings city;
   fs::path out;
   json root;  // the effective config
-  SinrSettings sinr;
-  Ns3Settings ns3;
   int stages = 4;
   // Shards and the merge share the scene, the vehicle library and the traffic
   // built once before them (`--until traffic`): several processes building
@@ -225,14 +193,8 @@ std::string file_hash(const std::string& p) { return p.empty() ? std::string() :
 CityRun start_city_run(const CityRunArgs& args, const std::vector<std::string>& argv) {
   CityRun r(args, argv);
   r.out = args.out.empty() ? fs::path(r.city.out) : fs::path(args.out);
-  r.root = effective_config(args.city);
-  load_vehicles_config(args.city);
-  load_trace_config(args.city);
-  load_sweep_config(args.city);
-  r.sinr = load_sinr_settings(args.city);
-  r.ns3 = load_ns3_settings(args.city);
-  r.stages = r.sinr.present && r.sinr.enabled ? 5 : 4;
-  if (r.city.fcd.empty()) load_traffic_args(args.city, r.city, "");
+  const SinrSettings& sinr = r.settings.sinr;
+  r.stages = sinr.present && sinr.enabled ? 5 : 4;
   if (args.shard && args.merge) throw std::invalid_argument("--shard and --merge: trace every shard first, then merge once");
   if (!args.until.empty() && (args.shard || args.merge))
     throw std::invalid_argument("--until with --shard or --merge: build the shared stages first, then the shards");
@@ -263,8 +225,7 @@ void city_scene(CityRun& r, const fs::path& scene_dir) {
     s.from_mitsuba = r.city.mitsuba;
   }
   s.out = scene_dir.string();
-  s.config = r.args.city;
-  run_scene_stage(s, r.argv);
+  run_scene_stage(s, r.settings, r.argv);
   r.stamps.mark("scene", scene_key);
 }
 
@@ -278,8 +239,7 @@ void city_vehicles(CityRun& r, const fs::path& vehicles_dir) {
   spdlog::info("[2/{}] vehicles: building {}", r.stages, vehicles_dir.string());
   VehiclesArgs v;
   v.out = vehicles_dir.string();
-  v.config = r.args.city;
-  run_vehicles_stage(v, r.argv);
+  run_vehicles_stage(v, r.settings, r.argv);
   r.stamps.mark("vehicles", vehicles_key);
 }
 
@@ -296,7 +256,7 @@ CityTraffic city_traffic(CityRun& r, const fs::path& traffic_dir) {
   if (!t.fcd.empty()) {
     spdlog::info("[3/{}] traffic: using the FCD trace {}", r.stages, t.fcd);
   } else {
-    const TrafficArgs a = load_traffic_args(r.args.city, r.city, traffic_dir.string());
+    const TrafficArgs a = traffic_args(r.settings, traffic_dir.string());
     const std::string traffic_key =
         sha256_text(r.version + tables_text(r.root, {"traffic"}) + file_hash(r.city.net) + file_hash(r.city.sumocfg));
     if (r.reuse() && r.stamps.up_to_date("traffic", traffic_key, traffic_dir / "traffic.json")) {
@@ -329,7 +289,6 @@ bool city_sweep(CityRun& r, const CityTraffic& t, const fs::path& scene_dir, con
   sweep_args.vtypes = t.vtype_files;
   sweep_args.rsus = r.city.rsus;
   sweep_args.out = dataset.string();
-  sweep_args.config = r.args.city;
   sweep_args.resume = r.args.resume;
   sweep_args.eta_end_s = t.eta_end;
   const auto& args = r.args;
@@ -345,7 +304,7 @@ bool city_sweep(CityRun& r, const CityTraffic& t, const fs::path& scene_dir, con
                    file.string());
       sweep_args.out = file.string();
       sweep_args.shard = args.shard;
-      r.summary["sweep"] = run_sweep_stage(sweep_args, r.argv);
+      r.summary["sweep"] = run_sweep_stage(sweep_args, r.settings, r.argv);
       r.stamps.mark(stage, sweep_key);
     }
     r.summary["shard"] = file.string();
@@ -366,7 +325,7 @@ bool city_sweep(CityRun& r, const CityTraffic& t, const fs::path& scene_dir, con
     spdlog::info("[4/{}] sweep: up to date ({})", r.stages, dataset.string());
   } else {
     spdlog::info("[4/{}] sweep: tracing {} into {}", r.stages, t.fcd, dataset.string());
-    r.summary["sweep"] = run_sweep_stage(sweep_args, r.argv);
+    r.summary["sweep"] = run_sweep_stage(sweep_args, r.settings, r.argv);
     r.stamps.mark("sweep", sweep_key);
   }
   return true;
@@ -395,12 +354,11 @@ std::vector<std::string> city_dataset(CityRun& r, const fs::path& dataset) {
 // schedule) so that their disagreement with it is measured on the same packets.
 std::vector<std::pair<std::string, SinrArgs>> sinr_runs(const CityRun& r, const fs::path& dataset,
                                                         const fs::path& sinr_dir) {
-  const SinrSettings& sinr = r.sinr;
+  const SinrSettings& sinr = r.settings.sinr;
   std::vector<std::pair<std::string, SinrArgs>> runs;
   for (std::size_t i = 0; i < sinr.models.size(); ++i) {
     SinrArgs a;
     a.channels = dataset.string();
-    a.config = r.args.city;
     a.channel_model = generators::sinr::channel_model_name(sinr.models[i].kind);
     a.los_from_ray = sinr.models[i].los_from_ray;
     a.out = (sinr_dir / (sinr.models[i].label() + ".h5")).string();
@@ -432,7 +390,7 @@ void city_sinr(CityRun& r, const fs::path& dataset, std::vector<std::string>& pr
     json sinr_summary = json::array();
     for (std::size_t i = 0; i < runs.size(); ++i) {
       spdlog::info("[5/{}] sinr: {} ({}/{})", r.stages, runs[i].first, i + 1, runs.size());
-      sinr_summary.push_back(run_sinr_stage(runs[i].second, r.argv));
+      sinr_summary.push_back(run_sinr_stage(runs[i].second, r.settings, r.argv));
     }
     r.summary["sinr"] = sinr_summary;
     ReportArgs report;
@@ -465,7 +423,7 @@ void city_ns3(CityRun& r, const fs::path& dataset, std::vector<std::string>& pro
   if (!r.args.force && r.stamps.up_to_date("ns3", ns3_key, table)) {
     spdlog::info("ns3: up to date ({})", table.string());
   } else {
-    run_ns3_table_stage({dataset.string(), table.string(), r.args.city}, r.argv);
+    run_ns3_table_stage({dataset.string(), table.string()}, r.settings, r.argv);
     r.stamps.mark("ns3", ns3_key);
   }
   for (const auto& p : generators::validate_dataset(table.string())) {
@@ -494,10 +452,11 @@ json run_city(const CityRunArgs& args, const std::vector<std::string>& argv) {
   }
   std::vector<std::string> problems = city_dataset(r, dataset);
   // Radio map ([radiomap]) and the Blender picture: docs/radiomap.md.
-  if (load_radiomap_settings(args.city).present)
-    r.summary["radiomap"] = run_city_radiomap(args.city, r.out.string(), scene_dir.string(), r.city.net, args.force, argv);
-  if (r.sinr.present && r.sinr.enabled) city_sinr(r, dataset, problems);
-  if (r.ns3.present && r.ns3.enabled) city_ns3(r, dataset, problems);
+  const Settings& s = r.settings;
+  if (s.radiomap.present)
+    r.summary["radiomap"] = run_city_radiomap(s, r.out.string(), scene_dir.string(), r.city.net, args.force, argv);
+  if (s.sinr.present && s.sinr.enabled) city_sinr(r, dataset, problems);
+  if (s.ns3.present && s.ns3.enabled) city_ns3(r, dataset, problems);
   r.summary["valid"] = problems.empty();
   return r.summary;
 }

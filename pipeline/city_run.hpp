@@ -14,12 +14,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pipeline/settings/settings.hpp"
 #include "pipeline/shard.hpp"
 
 namespace raysweep::pipeline {
 
 struct CityRunArgs {
   std::string city;  // CITY.toml
+  std::vector<std::string> set;  // `--set TABLE.KEY=VALUE` over it (settings/overrides.hpp)
   std::string out;   // default: [city] out, else out/<name>
   bool resume = false;
   bool force = false;  // run every stage even when up to date
@@ -36,16 +38,6 @@ struct CityRunArgs {
   bool virtual_dataset = false;  // merge into an HDF5 virtual dataset over the shards
 };
 
-struct CityConfig {
-  std::string name;
-  std::string osm, net;       // absolute paths
-  std::string sumocfg, fcd;   // [traffic] sources (absolute; empty when generated)
-  std::string rsus;           // [city] rsus CSV (absolute; optional)
-  std::string out;
-  std::string mitsuba;        // [city] mitsuba: a Sionna scene.xml instead of osm
-};
-CityConfig load_city_config(const std::string& path);
-
 // Where `raysweep run CITY.toml [--out OUT]` put the inputs of its sweep: the
 // scene and vehicle library folders, the FCD trace (from its traffic stage,
 // or [traffic] fcd as given) with its vType files, and the city's RSUs.
@@ -53,9 +45,9 @@ struct CityOutputs {
   std::string out, scene, vehicles, fcd, rsus;
   std::vector<std::string> vtypes;
 };
-// Throws std::invalid_argument naming what is missing and saying to run
-// `raysweep run CITY.toml` first.
-CityOutputs city_outputs(const std::string& city_file, const std::string& out = "");
+// `city` comes from load_city_settings. Throws std::invalid_argument naming
+// what is missing and saying to run `raysweep run CITY.toml` first.
+CityOutputs city_outputs(const Settings& city, const std::string& out = "");
 
 nlohmann::json run_city(const CityRunArgs& args, const std::vector<std::string>& argv);
 

@@ -16,8 +16,9 @@
 #include "generators/dataset_writer.hpp"
 #include "meshkit/errors.hpp"
 #include "pipeline/city_run.hpp"
-#include "pipeline/config.hpp"
-#include "pipeline/config_tables.hpp"
+#include "pipeline/settings/config_file.hpp"
+#include "pipeline/settings/settings.hpp"
+#include "pipeline/settings/tables.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/mpi_run.hpp"
 #include "pipeline/radiomap_stage.hpp"
@@ -60,6 +61,12 @@ std::map<std::string, double> parse_class_mix(const std::string& s) {
 namespace rp = raysweep::pipeline;
 using Argv = std::vector<std::string>;
 
+// `--set TABLE.KEY=VALUE` (settings/overrides.hpp), on the commands that trace.
+void add_set_option(CLI::App* app, std::vector<std::string>& sets) {
+  app->add_option("--set", sets, "TABLE.KEY=VALUE: change one setting of the config, checked like the file (repeatable)")
+      ->allow_extra_args(false);
+}
+
 // One subcommand: its options, registered on the app, and what runs when it
 // is the one given (returns the exit status). The options live in a
 // shared_ptr the run function holds, so CLI11 can write into them.
@@ -71,7 +78,7 @@ struct Subcommand {
 Subcommand scene_command(CLI::App& app) {
   struct Options {
     rp::SceneArgs scene;
-    std::string offset;
+    std::string config, offset;
     bool draco = false, no_draco = false, no_preview = false;
   };
   auto o = std::make_shared<Options>();
@@ -82,7 +89,7 @@ Subcommand scene_command(CLI::App& app) {
   sc->add_option("--net-offset", o->offset, "X,Y offset added after projection (with --proj)");
   sc->add_option("--from-mitsuba", o->scene.from_mitsuba, "import a Sionna RT / Mitsuba scene.xml");
   sc->add_option("--out", o->scene.out, "output scene folder")->required();
-  sc->add_option("--config", o->scene.config, "TOML config ([scene] table)");
+  sc->add_option("--config", o->config, "TOML config ([scene] table)");
   sc->add_flag("--draco", o->draco, "Draco-compress the glTF geometry");
   sc->add_flag("--no-draco", o->no_draco, "do not compress (overrides the config)");
   sc->add_flag("--no-preview", o->no_preview, "skip preview.png");
@@ -92,7 +99,7 @@ Subcommand scene_command(CLI::App& app) {
             if (o->draco) scene.draco = true;
             if (o->no_draco) scene.draco = false;
             scene.preview = !o->no_preview;
-            const auto manifest = rp::run_scene_stage(scene, args);
+            const auto manifest = rp::run_scene_stage(scene, rp::load_settings(o->config), args);
             std::cout << scene.out << ": " << manifest["triangle_count"] << " triangles";
             if (manifest.contains("buildings"))
               std::cout << ", buildings kept " << manifest["buildings"]["kept"] << " / repaired "
@@ -105,6 +112,7 @@ Subcommand scene_command(CLI::App& app) {
 Subcommand vehicles_command(CLI::App& app) {
   struct Options {
     rp::VehiclesArgs vehicles;
+    std::string config;
     bool no_preview = false;
   };
   auto o = std::make_shared<Options>();
@@ -115,11 +123,11 @@ Subcommand vehicles_command(CLI::App& app) {
                  "[CLASS=]UNIT: a model file's length unit (m, dm, cm, mm, in, ft); glTF is metres, OBJ/PLY/OFF "
                  "are guessed from the size otherwise");
   vc->add_option("--vtypes", o->vehicles.vtypes, "SUMO file with <vType> elements: one entry per vType");
-  vc->add_option("--config", o->vehicles.config, "TOML config ([vehicles] table)");
+  vc->add_option("--config", o->config, "TOML config ([vehicles] table)");
   vc->add_flag("--no-preview", o->no_preview, "skip preview.png");
   return {vc, [o](const Argv& args) {
             o->vehicles.preview = !o->no_preview;
-            const auto manifest = rp::run_vehicles_stage(o->vehicles, args);
+            const auto manifest = rp::run_vehicles_stage(o->vehicles, rp::load_settings(o->config), args);
             std::cout << o->vehicles.out << ": " << manifest["vehicles"].size() << " vehicle models\n";
             return 0;
           }};
@@ -127,19 +135,22 @@ Subcommand vehicles_command(CLI::App& app) {
 
 Subcommand trace_command(CLI::App& app) {
   auto trace = std::make_shared<rp::TraceArgs>();
+  auto config = std::make_shared<std::string>();
+  auto sets = std::make_shared<std::vector<std::string>>();
   auto* tc = app.add_subcommand("trace", "trace one snapshot: every antenna pair's paths, gains and LoS class");
   tc->add_option("--scene", trace->scene, "scene folder (from `raysweep scene`)")->required();
   tc->add_option("--vehicles", trace->vehicles, "vehicle library folder (default: built-in parametric models)");
   tc->add_option("--poses", trace->poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
   tc->add_option("--nodes", trace->nodes, "bare antennas CSV: id,x,y,z");
   tc->add_option("--out", trace->out, "output: .json (trace document) or .h5 (one-frame channel dataset)")->required();
-  tc->add_option("--config", trace->config, "TOML config ([radio], [tracer], [materials.<name>])");
+  tc->add_option("--config", *config, "TOML config ([radio], [tracer], [materials.<name>])");
   tc->add_option("--lod", trace->lod, "vehicle LOD (default: each library entry's default)");
   tc->add_option("--exclude-objects", trace->exclude_objects,
                  "regex on static object ids to leave out (e.g. '^mesh-car_' for Sionna's placeholder cars)");
   tc->add_option("--cfr", trace->cfr, "add each pair's frequency response: 80211p or nr:MU:NRB (e.g. nr:2:10)");
-  return {tc, [trace](const Argv& args) {
-            const auto summary = rp::run_trace_stage(*trace, args);
+  add_set_option(tc, *sets);
+  return {tc, [trace, config, sets](const Argv& args) {
+            const auto summary = rp::run_trace_stage(*trace, rp::load_settings(*config, *sets), args);
             std::cout << trace->out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
                       << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
                       << " paths\n";
@@ -204,7 +215,8 @@ Subcommand traffic_command(CLI::App& app) {
 Subcommand sweep_command(CLI::App& app) {
   struct Options {
     rp::SweepArgs sweep;
-    std::string shard;
+    std::string config, shard;
+    std::vector<std::string> sets;
   };
   auto o = std::make_shared<Options>();
   auto& sweep = o->sweep;
@@ -215,13 +227,14 @@ Subcommand sweep_command(CLI::App& app) {
   sw->add_option("--vtypes", sweep.vtypes, ".sumocfg or route/additional files defining the FCD's vehicle types");
   sw->add_option("--rsus", sweep.rsus, "road-side units CSV: id,x,y,z (antenna position)");
   sw->add_option("--out", sweep.out, "output .h5")->required();
-  sw->add_option("--config", sweep.config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
+  sw->add_option("--config", o->config, "TOML config ([sweep], [radio], [tracer], [materials.<name>])");
   sw->add_flag("--resume", sweep.resume, "continue an interrupted run (keeps its committed blocks)");
   sw->add_option("--shard", o->shard, "I/N: trace only blocks b with b mod N = I into a shard file (raysweep merge)");
+  add_set_option(sw, o->sets);
   return {sw, [o](const Argv& args) {
             auto& sweep = o->sweep;
             if (!o->shard.empty()) sweep.shard = rp::parse_shard(o->shard);
-            const auto summary = rp::run_sweep_stage(sweep, args);
+            const auto summary = rp::run_sweep_stage(sweep, rp::load_settings(o->config, o->sets), args);
             std::cout << sweep.out << ": " << summary["frames"] << " frames, " << summary["links"]
                       << " pair-channels (" << summary["traced_links"] << " traced), " << summary["bytes"]
                       << " bytes\n";
@@ -267,6 +280,7 @@ Subcommand run_command(CLI::App& app) {
   rc->add_option("--out", city.out, "output folder (default: [city] out or out/<name>)");
   rc->add_flag("--resume", city.resume, "continue an interrupted sweep");
   rc->add_flag("--force", city.force, "run every stage even when up to date");
+  add_set_option(rc, city.set);
   rc->add_option("--until", city.until, "stop after this stage: scene, vehicles, traffic or sweep");
   rc->add_option("--shard", o->shard, "I/N: trace shard I of N into <out>/shards/dataset.I-of-N.h5 and stop");
   rc->add_flag("--merge", city.merge, "merge <out>/shards/ into <out>/dataset.h5, then run the later stages");
@@ -306,6 +320,7 @@ Subcommand merge_command(CLI::App& app) {
 Subcommand sinr_command(CLI::App& app) {
   struct Options {
     rp::SinrArgs sinr;
+    std::string config;
     std::uint64_t seed = 0;
     CLI::Option* seed_option = nullptr;
   };
@@ -317,7 +332,7 @@ Subcommand sinr_command(CLI::App& app) {
   sn->add_option("--channel-model", sinr.channel_model, "ray | tr36885 | tr37885-urban | tr37885-highway")
       ->capture_default_str();
   sn->add_flag("--los-from-ray", sinr.los_from_ray, "baselines: take the LoS class from the traced link");
-  sn->add_option("--config", sinr.config, "TOML config ([sinr] table)");
+  sn->add_option("--config", o->config, "TOML config ([sinr] table)");
   sn->add_option("--schedule-from", sinr.schedule_from,
                  "evaluate the transmissions of an earlier SINR file (same packets, another channel model)");
   sn->add_option("--rats-enabled", sinr.rats_enabled, "both | 80211p-only | nrv2x-only (overrides the config)");
@@ -325,7 +340,7 @@ Subcommand sinr_command(CLI::App& app) {
   return {sn, [o](const Argv& args) {
             auto& sinr = o->sinr;
             if (o->seed_option->count()) sinr.seed = o->seed;
-            const auto summary = rp::run_sinr_stage(sinr, args);
+            const auto summary = rp::run_sinr_stage(sinr, rp::load_settings(o->config), args);
             std::cout << sinr.out << ": " << summary["transmissions"] << " transmissions, " << summary["receptions"]
                       << " reception attempts (" << summary["decoded"] << " decoded)";
             for (const auto& [rat, v] : summary["prr"].items())
@@ -337,12 +352,13 @@ Subcommand sinr_command(CLI::App& app) {
 
 Subcommand ns3_table_command(CLI::App& app) {
   auto ns3 = std::make_shared<rp::Ns3TableArgs>();
+  auto config = std::make_shared<std::string>();
   auto* nt = app.add_subcommand("ns3-table", "lookup table for ns-3's Raysweep models (HDF5) from a channel dataset");
   nt->add_option("--channels", ns3->channels, "channel dataset .h5 (from `raysweep sweep`)")->required();
   nt->add_option("--out", ns3->out, "output table .h5")->required();
-  nt->add_option("--config", ns3->config, "TOML config ([ns3] table)");
-  return {nt, [ns3](const Argv& args) {
-            const auto summary = rp::run_ns3_table_stage(*ns3, args);
+  nt->add_option("--config", *config, "TOML config ([ns3] table)");
+  return {nt, [ns3, config](const Argv& args) {
+            const auto summary = rp::run_ns3_table_stage(*ns3, rp::load_settings(*config), args);
             std::cout << ns3->out << ": " << summary["frames"] << " frames, " << summary["pairs"] << " pair-frames, "
                       << summary["bytes"] << " bytes\n";
             return 0;
@@ -400,6 +416,7 @@ Subcommand tradeoff_command(CLI::App& app) {
       ->capture_default_str();
   to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
   to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
+  add_set_option(to, tradeoff.set);
   return {to, [o](const Argv& args) {
             o->tradeoff.chart = !o->no_chart;
             const auto r = rp::run_tradeoff_stage(o->tradeoff, args);
@@ -416,6 +433,7 @@ Subcommand tradeoff_command(CLI::App& app) {
 // Radio maps (OpenVDB) and Blender pictures: docs/radiomap.md.
 Subcommand radiomap_command(CLI::App& app) {
   auto radiomap = std::make_shared<rp::RadioMapArgs>();
+  auto config = std::make_shared<std::string>();
   auto* rm = app.add_subcommand("radiomap", "path gain from transmitters at every street voxel (OpenVDB)");
   rm->add_option("--scene", radiomap->scene, "scene folder (from `raysweep scene`)")->required();
   rm->add_option("--vehicles", radiomap->vehicles, "vehicle library folder (default: built-in parametric models)");
@@ -423,12 +441,12 @@ Subcommand radiomap_command(CLI::App& app) {
   rm->add_option("--net", radiomap->net, "SUMO network for region \"streets\" (default: the scene's)");
   rm->add_option("--tx", radiomap->tx, "transmitter ID,X,Y,Z[,POWER_DBM] (repeatable)");
   rm->add_option("--out", radiomap->out, "output .vdb")->required();
-  rm->add_option("--config", radiomap->config, "TOML config ([radiomap], [radio], [tracer], [materials.<name>])");
+  rm->add_option("--config", *config, "TOML config ([radiomap], [radio], [tracer], [materials.<name>])");
   rm->add_option("--png", radiomap->png, "horizontal slice at antenna height (.png)");
   rm->add_option("--check", radiomap->check, "trace N voxels with the per-point tracer and report the agreement")
       ->check(CLI::NonNegativeNumber);
-  return {rm, [radiomap](const Argv& args) {
-            const auto r = rp::run_radiomap_stage(*radiomap, args);
+  return {rm, [radiomap, config](const Argv& args) {
+            const auto r = rp::run_radiomap_stage(*radiomap, rp::load_settings(*config), args);
             std::cout << radiomap->out << ": " << r["voxels"] << " voxels (" << r["region"].get<std::string>()
                       << "), " << r["tx"].size() << " transmitter(s) in " << r["solve_s"].get<double>() << " s\n";
             if (!r["check"].is_null())
@@ -460,19 +478,21 @@ Subcommand render_command(CLI::App& app) {
           }};
 }
 
-// The declared schema of city.toml (pipeline/config_tables.cpp).
+// The declared schema of city.toml (pipeline/settings/tables.hpp).
 Subcommand config_command(CLI::App& app) {
   struct Options {
     std::string file;
+    std::vector<std::string> sets;
     bool docs = false;
   };
   auto o = std::make_shared<Options>();
   auto* cf = app.add_subcommand("config", "check a city/stage config and print its effective settings (JSON)");
   cf->add_option("file", o->file, "city.toml or stage config (none: the defaults)");
   cf->add_flag("--docs", o->docs, "print the schema as Markdown (docs/config.md)");
+  add_set_option(cf, o->sets);
   return {cf, [o](const Argv&) {
             if (o->docs) std::cout << rp::config_docs();
-            else std::cout << rp::effective_config(o->file).dump(2) << "\n";
+            else std::cout << rp::effective_config(o->file, o->sets).dump(2) << "\n";
             return 0;
           }};
 }

@@ -6,7 +6,6 @@
 #include <filesystem>
 
 #include "generators/ns3_table.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"
@@ -16,22 +15,14 @@ namespace raysweep::pipeline {
 namespace fs = std::filesystem;
 using json = nlohmann::json;
 
-json Ns3Settings::to_json() const { return ns3_table().write(*this); }
-
-Ns3Settings load_ns3_settings(const std::string& path) {
-  Ns3Settings s;
-  if (path.empty()) return s;
-  s.present = ConfigFile(path).read(ns3_table(), s);
-  return s;
-}
-
-json run_ns3_table_stage(const Ns3TableArgs& args, const std::vector<std::string>& argv) {
+json run_ns3_table_stage(const Ns3TableArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t_start = std::chrono::steady_clock::now();
-  const Ns3Settings settings = load_ns3_settings(args.config);
+  const Ns3Settings& settings = all.ns3;
   const json config = settings.to_json();
   std::vector<InputFile> inputs{{"channels", args.channels}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
-  const json prov = provenance("ns3-table", inputs, config, recorded_command(argv));
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
+  json prov = provenance("ns3-table", inputs, config, recorded_command(argv));
+  all.record_sets(prov);
 
   generators::Ns3TableHeader header;
   stamp_header(header, kVersion, kGitHash, config, prov);

@@ -19,7 +19,6 @@
 #include "generators/radiomap_solver.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"
-#include "pipeline/config.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/radiomap_vdb.hpp"
@@ -27,8 +26,6 @@
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/trace_stage.hpp"
-#include "pipeline/config_tables.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/tracer.hpp"
 
@@ -92,52 +89,14 @@ double percentile(std::vector<double> v, double q) {
 
 }  // namespace
 
-RadioMapTx parse_radiomap_tx(const std::string& spec, const std::string& what) {
-  std::vector<std::string> parts;
-  std::stringstream ss(spec);
-  for (std::string p; std::getline(ss, p, ',');) parts.push_back(p);
-  if (parts.size() < 4 || parts.size() > 5 || parts[0].empty())
-    throw std::invalid_argument(what + " '" + spec + "': expected ID,X,Y,Z[,POWER_DBM]");
-  RadioMapTx tx;
-  tx.id = parts[0];
-  for (char c : tx.id)
-    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-'))
-      throw std::invalid_argument(what + " '" + spec + "': the id may hold letters, digits, '_' and '-' only");
-  try {
-    for (int k = 0; k < 3; ++k) {
-      std::size_t used = 0;
-      tx.position[k] = std::stod(parts[k + 1], &used);
-      if (used != parts[k + 1].size() || !std::isfinite(tx.position[k])) throw std::invalid_argument("");
-    }
-    if (parts.size() == 5) {
-      std::size_t used = 0;
-      tx.power_dbm = std::stod(parts[4], &used);
-      if (used != parts[4].size() || !std::isfinite(tx.power_dbm)) throw std::invalid_argument("");
-      tx.power_given = true;
-    }
-  } catch (const std::exception&) {
-    throw std::invalid_argument(what + " '" + spec + "': coordinates and power must be finite numbers");
-  }
-  return tx;
-}
-
-json RadioMapSettings::to_json() const { return radiomap_table().write(*this); }
-
-RadioMapSettings load_radiomap_settings(const std::string& path) {
-  RadioMapSettings s;
-  if (path.empty()) return s;
-  s.present = ConfigFile(path).read(radiomap_table(), s);
-  return s;
-}
-
 namespace {
 
 // The settings with the command line's transmitters, checked; each
 // transmitter's power defaults to the radio's.
-RadioMapSettings checked_settings(const RadioMapArgs& args, const TraceSettings& trace, const std::string& cfg_name) {
-  RadioMapSettings s = load_radiomap_settings(args.config);
+RadioMapSettings checked_settings(const RadioMapArgs& args, const Settings& all, const std::string& cfg_name) {
+  RadioMapSettings s = all.radiomap;
   for (const auto& spec : args.tx) s.tx.push_back(parse_radiomap_tx(spec, "--tx"));
-  // Each key's own range is the schema's (config_tables.cpp); this one spans two keys.
+  // Each key's own range is the schema's (settings/tables.cpp); this one spans two keys.
   if (s.z_min_m > s.z_max_m)
     throw std::invalid_argument(cfg_name + ": radiomap.z_min_m (" + std::to_string(s.z_min_m) +
                                 ") must not exceed radiomap.z_max_m (" + std::to_string(s.z_max_m) + ")");
@@ -145,7 +104,7 @@ RadioMapSettings checked_settings(const RadioMapArgs& args, const TraceSettings&
   std::set<std::string> ids;
   for (auto& t : s.tx) {
     if (!ids.insert(t.id).second) throw std::invalid_argument("radiomap: transmitter id '" + t.id + "' twice");
-    if (!t.power_given) t.power_dbm = trace.radio.tx_power_dbm;
+    if (!t.power_given) t.power_dbm = all.trace.radio.tx_power_dbm;
   }
   return s;
 }
@@ -414,14 +373,14 @@ json vdb_meta(const TraceSettings& trace, const RadioMapSettings& s, const std::
 
 }  // namespace
 
-json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>& argv) {
+json run_radiomap_stage(const RadioMapArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   if (fs::path(args.out).extension() != ".vdb") throw std::invalid_argument(args.out + ": output must end in .vdb");
   if (!args.png.empty() && fs::path(args.png).extension() != ".png")
     throw std::invalid_argument(args.png + ": the slice picture must end in .png");
-  const TraceSettings trace = load_trace_config(args.config);
-  const std::string cfg_name = args.config.empty() ? std::string("radiomap settings") : args.config;
-  const RadioMapSettings s = checked_settings(args, trace, cfg_name);
+  const TraceSettings& trace = all.trace;
+  const std::string cfg_name = all.file.empty() ? std::string("radiomap settings") : all.file;
+  const RadioMapSettings s = checked_settings(args, all, cfg_name);
   const long layers = static_cast<long>(std::floor((s.z_max_m - s.z_min_m) / s.voxel_m + 1e-9)) + 1;
   if (layers > 100000) throw std::invalid_argument(cfg_name + ": radiomap: more than 100000 voxel layers");
 
@@ -429,7 +388,7 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
   if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
   tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
   std::vector<InputFile> inputs{{"scene", scene_file.string()}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.poses.empty()) place_poses(args, scene, inputs);
   for (const auto& t : s.tx)
     if (generators::inside_static(scene, t.position))
@@ -454,7 +413,8 @@ json run_radiomap_stage(const RadioMapArgs& args, const std::vector<std::string>
   config["radiomap"] = s.to_json();
   config["radiomap"]["region"] = region.name;
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
-  const json prov = provenance("radiomap", inputs, config, argv);
+  json prov = provenance("radiomap", inputs, config, argv);
+  all.record_sets(prov);
   write_radiomap_vdb(args.out, s.voxel_m, s.z_min_m, o.voxels, maps.grids,
                      vdb_meta(trace, s, region.name, o.voxels.size(), config, prov, check));
 
@@ -479,7 +439,7 @@ namespace {
 // middle frame (poses CSV) and that snapshot traced again (`raysweep trace`
 // JSON), so the render shows them with their strongest paths. False when
 // the dataset has no vehicle there.
-bool frame_for_render(const fs::path& dataset, const std::string& city_file, const std::string& scene_dir,
+bool frame_for_render(const fs::path& dataset, const Settings& city, const std::string& scene_dir,
                       const fs::path& dir, const std::vector<std::string>& argv) {
   generators::DatasetReader reader(dataset);
   if (reader.frame_count() == 0) return false;
@@ -498,31 +458,59 @@ bool frame_for_render(const fs::path& dataset, const std::string& city_file, con
   t.scene = scene_dir;
   t.vehicles = (dataset.parent_path() / "vehicles").string();
   t.poses = (dir / "poses.csv").string();
-  t.config = city_file;
-  t.exclude_objects = load_sweep_config(city_file).exclude_objects;
+  t.exclude_objects = city.sweep.exclude_objects;
   t.out = (dir / "trace.json").string();
   spdlog::info("render: frame at {:.1f} s ({} vehicles) traced for its paths", frame.time_s, poses.size());
-  run_trace_stage(t, argv);
+  run_trace_stage(t, city, argv);
   return true;
 }
 
 }  // namespace
 
-json run_city_radiomap(const std::string& city_file, const std::string& out, const std::string& scene_dir,
+namespace {
+
+// The --set options a city's map was made with (<out>/.stamps/radiomap.json,
+// absent without any): changing them redoes the map as editing the file does.
+bool sets_changed(const Settings& city, const fs::path& record) {
+  json recorded = json::array();
+  std::ifstream in(record);
+  if (in) {
+    try {
+      recorded = json::parse(in).value("set", json::array());
+    } catch (const json::exception&) {
+      return true;
+    }
+  }
+  return recorded != json(city.sets);
+}
+
+void record_sets(const Settings& city, const fs::path& record) {
+  if (city.sets.empty()) {
+    fs::remove(record);
+    return;
+  }
+  fs::create_directories(record.parent_path());
+  write_file_atomic(record, json{{"set", city.sets}}.dump() + "\n");
+}
+
+}  // namespace
+
+json run_city_radiomap(const Settings& city, const std::string& out, const std::string& scene_dir,
                        const std::string& net, bool force, const std::vector<std::string>& argv) {
   const fs::path vdb = fs::path(out) / "radiomap.vdb", png = fs::path(out) / "radiomap.png";
   const fs::path render = fs::path(out) / "render.png";
-  const auto newest_input = std::max(fs::last_write_time(fs::path(scene_dir) / "scene.glb"), fs::last_write_time(city_file));
+  const auto newest_input = std::max(fs::last_write_time(fs::path(scene_dir) / "scene.glb"), fs::last_write_time(city.file));
   json summary = {{"vdb", vdb.string()}};
-  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input) {
+  const fs::path sets_record = fs::path(out) / ".stamps" / "radiomap.json";
+  if (force || !fs::exists(vdb) || fs::last_write_time(vdb) < newest_input || sets_changed(city, sets_record)) {
     RadioMapArgs a;
     a.scene = scene_dir;
     a.net = net;
     a.out = vdb.string();
-    a.config = city_file;
-    if (load_radiomap_settings(city_file).png) a.png = png.string();
+    if (city.radiomap.png) a.png = png.string();
     spdlog::info("radiomap: {}", vdb.string());
-    summary = run_radiomap_stage(a, argv);
+    summary = run_radiomap_stage(a, city, argv);
+    record_sets(city, sets_record);
   } else {
     spdlog::info("radiomap: up to date ({})", vdb.string());
   }
@@ -538,7 +526,7 @@ json run_city_radiomap(const std::string& city_file, const std::string& out, con
     r.out = render.string();
     try {
       const fs::path dataset = fs::path(out) / "dataset.h5", frame_dir = fs::path(out) / "render";
-      if (fs::exists(dataset) && frame_for_render(dataset, city_file, scene_dir, frame_dir, argv)) {
+      if (fs::exists(dataset) && frame_for_render(dataset, city, scene_dir, frame_dir, argv)) {
         r.vehicles = (fs::path(out) / "vehicles").string();
         r.poses = (frame_dir / "poses.csv").string();
         r.paths = (frame_dir / "trace.json").string();

@@ -12,7 +12,6 @@
 #include "meshkit/mitsuba_io.hpp"
 #include "meshkit/osm_buildings.hpp"
 #include "meshkit/sumo_net.hpp"
-#include "pipeline/config.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
@@ -67,7 +66,7 @@ BuiltScene import_mitsuba(const SceneArgs& args, std::vector<InputFile>& inputs)
 }
 
 // An extract that misses the network would silently give an empty city.
-void check_overlap(const SceneArgs& args, const SceneConfig& cfg, const meshkit::SumoNetwork& net,
+void check_overlap(const SceneArgs& args, const SceneSettings& cfg, const meshkit::SumoNetwork& net,
                    const meshkit::OsmBuildings& osm, const meshkit::Projection& projection) {
   if (net.lane_shapes.empty() || osm.nodes == 0) return;
   const auto a = projection.forward(osm.min_lon, osm.min_lat);
@@ -88,7 +87,7 @@ void check_overlap(const SceneArgs& args, const SceneConfig& cfg, const meshkit:
                                   "); wrong network or projection?");
 }
 
-BuiltScene build_from_osm(const SceneArgs& args, const SceneConfig& cfg, std::vector<InputFile>& inputs) {
+BuiltScene build_from_osm(const SceneArgs& args, const SceneSettings& cfg, std::vector<InputFile>& inputs) {
   if (args.osm.empty()) throw std::invalid_argument("--osm (or --from-mitsuba) is required");
   if (args.net.empty() == args.proj.empty()) throw std::invalid_argument("give exactly one of --net or --proj");
   meshkit::SumoNetwork net;
@@ -144,19 +143,20 @@ void describe_scene(const meshkit::Scene& scene, json& manifest) {
 
 }  // namespace
 
-json run_scene_stage(const SceneArgs& args, const std::vector<std::string>& argv) {
+json run_scene_stage(const SceneArgs& args, const Settings& settings, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   if (args.out.empty()) throw std::invalid_argument("--out is required");
-  SceneConfig cfg = load_scene_config(args.config);
+  SceneSettings cfg = settings.scene;
   if (args.draco) cfg.draco = *args.draco;
 
   std::vector<InputFile> inputs;
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!settings.file.empty()) inputs.push_back({"config", settings.file});
   BuiltScene built = args.from_mitsuba.empty() ? build_from_osm(args, cfg, inputs) : import_mitsuba(args, inputs);
   const meshkit::Scene& scene = built.scene;
   json& manifest = built.manifest;
   describe_scene(scene, manifest);
   manifest["provenance"] = provenance("scene", inputs, cfg.to_json(), argv);
+  settings.record_sets(manifest["provenance"]);
 
   StagedDirectory out(args.out);
   meshkit::GltfOptions gopt;

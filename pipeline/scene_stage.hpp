@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "meshkit/projection.hpp"
+#include "pipeline/settings/settings.hpp"
 
 namespace raysweep::pipeline {
 
@@ -19,13 +20,12 @@ struct SceneArgs {
   std::optional<meshkit::Vec2> net_offset; // with --proj
   std::string from_mitsuba;
   std::string out;
-  std::string config;
-  std::optional<bool> draco;  // overrides the config
+  std::optional<bool> draco;  // overrides [scene] draco
   bool preview = true;        // write preview.png (python/scene_preview.py)
 };
 
 // Runs the stage; returns the manifest it wrote. Throws meshkit::InputError,
 // ConfigError or std::exception with a message naming file and element.
-nlohmann::json run_scene_stage(const SceneArgs& args, const std::vector<std::string>& argv);
+nlohmann::json run_scene_stage(const SceneArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

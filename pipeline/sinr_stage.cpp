@@ -12,8 +12,6 @@
 #include "generators/sinr/outcomes.hpp"
 #include "generators/sinr/sinr_file.hpp"
 #include "meshkit/errors.hpp"
-#include "pipeline/config.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
@@ -25,38 +23,7 @@ namespace fs = std::filesystem;
 using json = nlohmann::json;
 namespace gs = generators::sinr;
 
-std::string SinrModel::label() const {
-  return std::string(gs::channel_model_name(kind)) + (los_from_ray ? "+los-from-ray" : "");
-}
-
-SinrModel parse_sinr_model(const std::string& s) {
-  SinrModel m;
-  std::string name = s;
-  const std::string suffix = "+los-from-ray";
-  if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
-    m.los_from_ray = true;
-    name.resize(name.size() - suffix.size());
-  }
-  m.kind = gs::parse_channel_model(name);
-  if (m.los_from_ray && m.kind == gs::ChannelModelKind::ray)
-    throw std::invalid_argument("'ray+los-from-ray' makes no sense: the ray model is the traced channel");
-  return m;
-}
-
-json SinrSettings::to_json() const { return sinr_table().write(*this); }
-
-SinrSettings load_sinr_settings(const std::string& path) {
-  SinrSettings s;
-  if (path.empty()) return s;
-  s.present = ConfigFile(path).read(sinr_table(), s);
-  // Settings that depend on each other (the schema checks each key alone).
-  try {
-    s.config.check();
-  } catch (const std::invalid_argument& e) {
-    throw ConfigError(path + ": [sinr]: " + e.what());
-  }
-  return s;
-}
+using gs::SinrModel;
 
 namespace {
 
@@ -89,15 +56,16 @@ SinrSchedule sinr_schedule(const SinrArgs& args, const gs::ChannelTrace& trace, 
   return s;
 }
 
-gs::SinrHeader sinr_header(const SinrArgs& args, const SinrSettings& settings, const SinrModel& model,
+gs::SinrHeader sinr_header(const SinrArgs& args, const Settings& all, const SinrSettings& settings, const SinrModel& model,
                            const gs::SinrConfig& cfg, const gs::ChannelTrace& trace,
                            const std::vector<std::string>& argv) {
   json config = settings.to_json();
   config["channel_model"] = model.label();
   std::vector<InputFile> inputs{{"channels", args.channels}};
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.schedule_from.empty()) inputs.push_back({"schedule", args.schedule_from});
-  const json prov = provenance("sinr", inputs, config, recorded_command(argv));
+  json prov = provenance("sinr", inputs, config, recorded_command(argv));
+  all.record_sets(prov);
 
   gs::SinrHeader header;
   stamp_header(header, kVersion, kGitHash, config, prov);
@@ -143,10 +111,10 @@ json sinr_summary(const SinrArgs& args, const SinrModel& model, const gs::SinrRu
 
 }  // namespace
 
-json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) {
+json run_sinr_stage(const SinrArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t_start = std::chrono::steady_clock::now();
-  SinrSettings settings = load_sinr_settings(args.config);
-  const SinrModel model = parse_sinr_model(args.channel_model + (args.los_from_ray ? "+los-from-ray" : ""));
+  SinrSettings settings = all.sinr;
+  const SinrModel model = gs::parse_sinr_model(args.channel_model + (args.los_from_ray ? "+los-from-ray" : ""));
   gs::SinrConfig cfg = settings.config;
   if (args.seed) cfg.seed = *args.seed;
   if (!args.rats_enabled.empty()) cfg.rats.enabled = args.rats_enabled;
@@ -161,7 +129,7 @@ json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv) 
   cfg.nr.carrier_hz = trace.carrier_hz();
   const auto channel = gs::make_channel_model(model.kind, trace, settings.stochastic);
   const SinrSchedule schedule = sinr_schedule(args, trace, cfg);
-  const gs::SinrHeader header = sinr_header(args, settings, model, cfg, trace, argv);
+  const gs::SinrHeader header = sinr_header(args, all, settings, model, cfg, trace, argv);
 
   StagedFile staged{fs::path(args.out)};
   gs::SinrRunStats stats;

@@ -10,37 +10,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/sinr/channel_models.hpp"
-#include "generators/sinr/sinr_config.hpp"
+#include "pipeline/settings/settings.hpp"
 
 namespace raysweep::pipeline {
-
-// One channel model of a comparison: "ray", "tr36885", "tr37885-urban",
-// "tr37885-highway", each optionally with "+los-from-ray".
-struct SinrModel {
-  generators::sinr::ChannelModelKind kind = generators::sinr::ChannelModelKind::ray;
-  bool los_from_ray = false;
-  std::string label() const;  // e.g. "tr37885-urban+los-from-ray"
-};
-SinrModel parse_sinr_model(const std::string& s);  // throws std::invalid_argument
-
-// The [sinr] table. Unknown keys and bad values are ConfigErrors naming file, key and line.
-struct SinrSettings {
-  bool present = false;  // the file has a [sinr] table (`raysweep run` then computes outcomes)
-  bool enabled = true;
-  generators::sinr::SinrConfig config;
-  generators::sinr::StochasticOptions stochastic;
-  std::vector<SinrModel> models{SinrModel{}};  // `run`: the first is the reference
-  bool shared_schedule = true;  // `run`: the other models reuse the reference's transmissions
-  bool isolated_runs = false;   // `run`: also the reference with each RAT alone (no coexistence)
-  nlohmann::json to_json() const;
-};
-SinrSettings load_sinr_settings(const std::string& path);
 
 struct SinrArgs {
   std::string channels;  // channel dataset .h5
   std::string out;       // SINR outcome .h5
-  std::string config;    // TOML with a [sinr] table (optional)
   std::string channel_model = "ray";
   bool los_from_ray = false;
   std::string schedule_from;  // reuse the transmissions of this SINR file
@@ -48,7 +24,8 @@ struct SinrArgs {
   std::optional<std::uint64_t> seed;
 };
 
-nlohmann::json run_sinr_stage(const SinrArgs& args, const std::vector<std::string>& argv);
+// [sinr] from `settings`, with the arguments' overrides.
+nlohmann::json run_sinr_stage(const SinrArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 struct ReportArgs {
   std::vector<std::string> sinr;  // the first is the reference of the disagreement ratios

@@ -17,13 +17,10 @@
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"
-#include "pipeline/config.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/fcd.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
 #include "pipeline/version.hpp"
@@ -45,18 +42,7 @@ std::string block_name(std::uint64_t b) {
 
 }  // namespace
 
-json SweepConfig::to_json() const { return sweep_table().write(*this); }
-
-SweepConfig load_sweep_config(const std::string& path) {
-  SweepConfig c;
-  if (path.empty()) return c;
-  const ConfigFile file(path);
-  file.read(sweep_table(), c);
-  if (!(c.begin_s <= c.end_s)) file.fail("sweep", "end_s", "must not be before sweep.begin_s");
-  return c;
-}
-
-FcdFilter sweep_fcd_filter(const SweepConfig& cfg) {
+FcdFilter sweep_fcd_filter(const SweepSettings& cfg) {
   FcdFilter filter;
   filter.begin_s = cfg.begin_s;
   filter.end_s = cfg.end_s;
@@ -103,7 +89,7 @@ const FcdTypeModel* FcdTypeModels::resolve(const FcdVehicle& v) {
   return it->second ? &*it->second : nullptr;
 }
 
-SweepSelection::SweepSelection(const SweepConfig& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path)
+SweepSelection::SweepSelection(const SweepSettings& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path)
     : max_vehicles_(cfg.max_vehicles), drop_outside_(cfg.outside == "drop"), bounds_(scene_bounds),
       fcd_(std::move(fcd_path)) {}
 
@@ -145,20 +131,21 @@ struct SweepRunId {
   std::string run_key;
 };
 
-SweepRunId identify_run(const SweepArgs& args, const TraceSettings& settings, const SweepConfig& cfg,
-                        const fs::path& scene_file, const std::vector<std::string>& argv) {
+SweepRunId identify_run(const SweepArgs& args, const Settings& all, const fs::path& scene_file,
+                        const std::vector<std::string>& argv) {
   std::vector<InputFile> inputs;
   inputs.push_back({"scene", scene_file.string()});
   inputs.push_back({"fcd", args.fcd});
   for (const auto& v : args.vtypes) inputs.push_back({"vtypes", v});
   if (!args.rsus.empty()) inputs.push_back({"rsus", args.rsus});
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.vehicles.empty()) inputs.push_back({"vehicle_manifest", (fs::path(args.vehicles) / "manifest.json").string()});
   SweepRunId id;
-  id.config = settings.to_json();
-  id.config["sweep"] = cfg.to_json();
+  id.config = all.trace.to_json();
+  id.config["sweep"] = all.sweep.to_json();
   id.config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : "library";
   id.prov = provenance("sweep", inputs, id.config, recorded_command(argv));
+  all.record_sets(id.prov);
   id.prov["embree"] = tracer::embree_version();
   id.run_key = json{{"config", id.config}, {"inputs", id.prov["inputs"]}, {"version", kVersion}}.dump();
   return id;
@@ -315,7 +302,7 @@ struct SweepProgress {
 };
 
 void log_progress(const SweepProgress& p, const generators::Sweep& sweep, const SweepArgs& args,
-                  const SweepConfig& cfg, double time_s) {
+                  const SweepSettings& cfg, double time_s) {
   const double wall = std::chrono::duration<double>(p.logged_at - p.start).count();
   const auto& s = sweep.stats();
   const double fps = static_cast<double>(s.frames) / wall;
@@ -335,7 +322,7 @@ bool owns_block(const SweepArgs& args, std::uint64_t block) { return !args.shard
 // Every frame of the FCD: its vehicles through the selection (also in the
 // blocks skipped, so the selection and node table match a full run), traced
 // into the blocks this run owns and has not committed before.
-SweepProgress trace_frames(const SweepArgs& args, const SweepConfig& cfg, std::uint64_t block_frames,
+SweepProgress trace_frames(const SweepArgs& args, const SweepSettings& cfg, std::uint64_t block_frames,
                            FcdReader& reader, SweepSelection& selection, SceneModels& models, NodeTable& nodes,
                            generators::Sweep& sweep, BlockStore& store, std::chrono::steady_clock::time_point start) {
   SweepProgress p;
@@ -468,17 +455,17 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
 
 }  // namespace
 
-json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv) {
+json run_sweep_stage(const SweepArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t_start = std::chrono::steady_clock::now();
   if (fs::path(args.out).extension() != ".h5") throw std::invalid_argument(args.out + ": output must end in .h5");
-  const TraceSettings settings = load_trace_config(args.config);
-  const SweepConfig cfg = load_sweep_config(args.config);
+  const TraceSettings& settings = all.trace;
+  const SweepSettings& cfg = all.sweep;
   generators::SweepOptions options = cfg.options;
-  if (!cfg.cfr.empty()) options.cfr = parse_ofdm_grid(cfg.cfr, settings.radio.frequency_hz);
+  if (cfg.cfr) options.cfr = tracer::ofdm_grid(*cfg.cfr, settings.radio.frequency_hz);
   if (!fs::exists(args.fcd)) throw std::invalid_argument(args.fcd + ": FCD file not found");
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
-  const SweepRunId id = identify_run(args, settings, cfg, scene_file, argv);
+  const SweepRunId id = identify_run(args, all, scene_file, argv);
   const fs::path parts = args.out + ".parts";
   prepare_parts(args, parts, id.run_key);
 

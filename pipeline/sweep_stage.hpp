@@ -23,6 +23,7 @@
 #include "generators/sweep.hpp"
 #include "meshkit/scene.hpp"
 #include "pipeline/fcd.hpp"
+#include "pipeline/settings/settings.hpp"
 #include "pipeline/shard.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/vtypes.hpp"
@@ -44,27 +45,11 @@ struct SweepArgs {
   std::optional<ShardSpec> shard;
 };
 
-// [sweep] table. Unknown keys and bad values are ConfigErrors naming file,
-// key and line.
-struct SweepConfig {
-  double begin_s = -1e300, end_s = 1e300, step_s = 0;
-  std::vector<std::string> ids, types;
-  std::vector<double> area;      // empty or xmin, ymin, xmax, ymax
-  std::size_t max_vehicles = 0;  // 0: all; else the first vehicles to appear, refilled as they leave
-  std::string outside = "error"; // vehicles outside the scene: "error" or "drop"
-  std::string cfr;               // "" | "80211p" | "nr:MU:NRB"
-  int lod = -1;
-  std::string exclude_objects;
-  generators::SweepOptions options;
-  nlohmann::json to_json() const;
-};
-SweepConfig load_sweep_config(const std::string& path);
-
 // What a sweep reads of an FCD trace, shared with `raysweep tradeoff` so that
 // both trace the same vehicles.
 
 // The FCD filter of a [sweep] table: time window, step, ids, types, area.
-FcdFilter sweep_fcd_filter(const SweepConfig& cfg);
+FcdFilter sweep_fcd_filter(const SweepSettings& cfg);
 
 // An FCD vehicle type resolved to a library model.
 struct FcdTypeModel {
@@ -99,7 +84,7 @@ class FcdTypeModels {
 // counted). Frames must be passed in order, every one of them.
 class SweepSelection {
  public:
-  SweepSelection(const SweepConfig& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path);
+  SweepSelection(const SweepSettings& cfg, const meshkit::Bounds& scene_bounds, std::string fcd_path);
   // The vehicles to trace, in FCD order, among those `traceable` accepts
   // (vehicles of types without a model are skipped before selection).
   std::vector<const FcdVehicle*> select(const FcdFrame& frame,
@@ -115,6 +100,7 @@ class SweepSelection {
   std::uint64_t dropped_outside_ = 0;
 };
 
-nlohmann::json run_sweep_stage(const SweepArgs& args, const std::vector<std::string>& argv);
+// [sweep], [radio], [tracer] and [materials.<name>] from `settings`.
+nlohmann::json run_sweep_stage(const SweepArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

@@ -161,7 +161,7 @@ const meshkit::VehicleModel& VehicleLibrary::model(const std::string& vclass) {
   if (dir_.empty()) {
     if (!meshkit::find_vehicle_class(vclass))
       throw std::invalid_argument("vehicle class '" + vclass + "' has no built-in model");
-    auto built = build_vehicle(vclass, vclass, "", VehiclesConfig{});
+    auto built = build_vehicle(vclass, vclass, "", VehiclesSettings{});
     return cache_.emplace(vclass, std::move(built.model)).first->second;
   }
   const fs::path manifest_path = fs::path(dir_) / "manifest.json";

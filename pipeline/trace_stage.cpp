@@ -9,12 +9,10 @@
 #include <fstream>
 
 #include "meshkit/gltf_io.hpp"
-#include "pipeline/config.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/version.hpp"
 #include "pipeline/staged_output.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_json.hpp"
@@ -41,14 +39,6 @@ void write_trace_file(const std::string& path, const TraceDocument& doc) {
 }
 
 }  // namespace
-
-tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz) {
-  if (spec == "80211p") return tracer::ofdm_80211p(carrier_hz);
-  int mu = 0, nrb = 0;
-  char tail = 0;
-  if (std::sscanf(spec.c_str(), "nr:%d:%d%c", &mu, &nrb, &tail) == 2) return tracer::ofdm_nr(mu, nrb, carrier_hz);
-  throw std::invalid_argument("--cfr '" + spec + "': expected 80211p or nr:NUMEROLOGY:N_RB (e.g. nr:2:10)");
-}
 
 namespace {
 
@@ -86,14 +76,14 @@ void add_antennas(const TraceArgs& args, SnapshotInputs& in) {
 }
 
 // Fills `in` (its scene cannot move).
-void load_snapshot(const TraceArgs& args, SnapshotInputs& in) {
+void load_snapshot(const TraceArgs& args, const std::string& config_file, SnapshotInputs& in) {
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file))
     throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
   in.scene.emplace(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
   in.scene->set_precompute_store(scene_precompute_store(args.scene));
   in.files.push_back({"scene", scene_file.string()});
-  if (!args.config.empty()) in.files.push_back({"config", args.config});
+  if (!config_file.empty()) in.files.push_back({"config", config_file});
   if (!args.poses.empty()) add_poses(args, in);
   in.nodes = tracer::vehicle_nodes(*in.scene);
   if (!args.nodes.empty()) add_antennas(args, in);
@@ -156,16 +146,17 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 
 }  // namespace
 
-json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv) {
+json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto ext = fs::path(args.out).extension().string();
   if (ext != ".json" && ext != ".h5")
     throw std::invalid_argument(args.out + ": output must end in .json (trace document) or .h5 (channel dataset)");
-  const TraceSettings settings = load_trace_config(args.config);
+  const TraceSettings& settings = all.trace;
   std::optional<tracer::OfdmGrid> grid;
-  if (!args.cfr.empty()) grid = parse_ofdm_grid(args.cfr, settings.radio.frequency_hz);
+  if (!args.cfr.empty())
+    grid = tracer::ofdm_grid(tracer::parse_ofdm_grid_spec(args.cfr, "--cfr"), settings.radio.frequency_hz);
   SnapshotInputs in;
-  load_snapshot(args, in);
+  load_snapshot(args, all.file, in);
 
   const auto t1 = std::chrono::steady_clock::now();
   const auto snap = tracer::trace_snapshot(*in.scene, in.nodes, settings.tracer, settings.radio);
@@ -177,6 +168,7 @@ json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv
   config["exclude_objects"] = args.exclude_objects;
   config["cfr"] = args.cfr;
   json prov = provenance("trace", in.files, config, argv);
+  all.record_sets(prov);
   prov["embree"] = tracer::embree_version();
   if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
   const tracer::OfdmGrid* g = grid ? &*grid : nullptr;

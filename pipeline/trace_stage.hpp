@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "pipeline/settings/settings.hpp"
 #include "tracer/channel.hpp"
 #include "tracer/solver.hpp"
 
@@ -17,16 +18,13 @@ struct TraceArgs {
   std::string vehicles;  // vehicle library folder; empty: built-in parametric models
   std::string poses;     // CSV id,class,x,y,heading_deg,speed_mps[,z]
   std::string nodes;     // CSV id,x,y,z
-  std::string out;       // .json
-  std::string config;    // TOML ([radio], [tracer], [materials.*])
+  std::string out;       // .json (trace document) or .h5 (one-frame channel dataset)
   int lod = -1;          // vehicle LOD; -1: each entry's default
   std::string exclude_objects;  // regex on static object ids to leave out (e.g. "^mesh-car_")
   std::string cfr;              // "" | "80211p" | "nr:MU:NRB": add each pair's frequency response
 };
 
-// "80211p" or "nr:MU:NRB" at `carrier_hz`; std::invalid_argument otherwise.
-tracer::OfdmGrid parse_ofdm_grid(const std::string& spec, double carrier_hz);
-
-nlohmann::json run_trace_stage(const TraceArgs& args, const std::vector<std::string>& argv);
+// [radio], [tracer] and [materials.<name>] from `settings`.
+nlohmann::json run_trace_stage(const TraceArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline

@@ -22,10 +22,9 @@
 #include "pipeline/fcd.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/settings/tables.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
-#include "pipeline/config_tables.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/version.hpp"
 #include "pipeline/vtypes.hpp"
@@ -225,6 +224,7 @@ struct TradeoffInputs {
   std::string scene_dir, vehicles_dir, fcd, config, rsus_file, out, title;
   std::vector<std::string> vtype_files;
   fs::path scene_file;
+  Settings settings;  // the city file's, or --config's (read once, after the inputs are checked)
   bool library_mode() const { return !vehicles_dir.empty(); }
 };
 
@@ -235,7 +235,8 @@ TradeoffInputs resolve_inputs(const TradeoffArgs& args) {
         !args.rsus.empty() || !args.vtypes.empty())
       throw std::invalid_argument("tradeoff: give either a city file or --scene/--fcd/--vehicles/--config, not both");
     if (!fs::exists(args.city)) throw std::invalid_argument(args.city + ": city file not found");
-    const CityOutputs o = city_outputs(args.city, args.city_out);
+    in.settings = load_city_settings(args.city, args.set);
+    const CityOutputs o = city_outputs(in.settings, args.city_out);
     in.scene_dir = o.scene;
     in.vehicles_dir = o.vehicles;
     in.fcd = o.fcd;
@@ -243,7 +244,7 @@ TradeoffInputs resolve_inputs(const TradeoffArgs& args) {
     in.vtype_files = o.vtypes;
     in.config = args.city;
     if (in.out.empty()) in.out = (fs::path(o.out) / "tradeoff").string();
-    in.title = load_city_config(args.city).name;
+    in.title = in.settings.city.name;
   } else {
     if (!args.city_out.empty()) throw std::invalid_argument("tradeoff: --city-out needs a city file");
     if (in.scene_dir.empty() || in.fcd.empty())
@@ -347,7 +348,7 @@ TradeoffSetting reference_setting(const tracer::TracerConfig& base, const GridAx
   return ref;
 }
 
-// Each switch the [tracer] table declares a study for (config_tables.cpp,
+// Each switch the [tracer] table declares a study for (pipeline/settings/trace_tables.cpp,
 // Table::toggle), turned over against the base where it applies: a new
 // mechanism's switch joins the grid from its declaration.
 void add_declared_toggles(const GridBase& b, const tracer::RadioConfig& radio, std::vector<TradeoffSetting>& grid) {
@@ -532,7 +533,7 @@ std::set<std::size_t> spread_choice(const std::vector<double>& eligible, int n) 
 
 // Pass 1: the frames with at least two traced vehicles; pass 2 takes the
 // chosen ones (the selection depends on every earlier frame).
-std::vector<SnapshotPoses> choose_snapshots(const std::string& fcd, const SweepConfig& cfg,
+std::vector<SnapshotPoses> choose_snapshots(const std::string& fcd, const SweepSettings& cfg,
                                             const meshkit::Bounds& bounds, FcdTypeModels& type_models, int n) {
   auto traceable = [&](const FcdVehicle& v) { return type_models.resolve(v) != nullptr; };
   std::vector<double> eligible;
@@ -794,7 +795,7 @@ json metrics_json() {
 }
 
 json tradeoff_provenance(const TradeoffArgs& args, const TradeoffInputs& in, const TraceSettings& settings,
-                         const SweepConfig& cfg, const GridAxes& axes, const GridBase& b,
+                         const SweepSettings& cfg, const GridAxes& axes, const GridBase& b,
                          const std::vector<std::string>& argv) {
   std::vector<InputFile> inputs{{"scene", in.scene_file.string()}, {"fcd", in.fcd}};
   for (const auto& v : in.vtype_files) inputs.push_back({"vtypes", v});
@@ -816,6 +817,7 @@ json tradeoff_provenance(const TradeoffArgs& args, const TradeoffInputs& in, con
                           {"repeats", std::max(1, args.repeats)},
                           {"target_p95_db", args.target_p95_db}};
   json prov = provenance("tradeoff", inputs, cfg_json, recorded_command(argv));
+  in.settings.record_sets(prov);
   prov["embree"] = tracer::embree_version();
   return prov;
 }
@@ -909,10 +911,11 @@ json write_outputs(const TradeoffArgs& args, const TradeoffInputs& in, const Tra
 
 json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>& argv) {
   const auto t_start = std::chrono::steady_clock::now();
-  const TradeoffInputs in = resolve_inputs(args);
+  TradeoffInputs in = resolve_inputs(args);
   const GridAxes axes = parse_axes(args);
-  const TraceSettings settings = load_trace_config(in.config);
-  const SweepConfig cfg = load_sweep_config(in.config);
+  if (args.city.empty()) in.settings = load_settings(in.config, args.set);
+  const TraceSettings& settings = in.settings.trace;
+  const SweepSettings& cfg = in.settings.sweep;
   tracer::validate(settings.tracer, settings.radio);
 
   // Built-in models are full detail (a library's LOD 0).

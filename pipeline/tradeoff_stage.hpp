@@ -29,6 +29,7 @@ struct TradeoffArgs {
   // ...or explicit inputs, as for `raysweep sweep`.
   std::string scene, vehicles, fcd, config, rsus;
   std::vector<std::string> vtypes;
+  std::vector<std::string> set;  // `--set TABLE.KEY=VALUE` over the city or config file
   std::string out;  // default with a city: <city out>/tradeoff
   int snapshots = 0;  // 0: 4 (--quick: 2)
   std::string rays, depths, simplify;  // comma-separated lists; empty: the defaults

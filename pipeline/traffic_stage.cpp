@@ -13,7 +13,6 @@
 
 #include "meshkit/errors.hpp"
 #include "meshkit/vehicle_classes.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 
@@ -21,8 +20,6 @@ namespace raysweep::pipeline {
 
 namespace fs = std::filesystem;
 using json = nlohmann::json;
-
-json TrafficSettings::to_json() const { return traffic_table().write(*this); }
 
 std::string find_program(const std::string& name, const char* env_override) {
   if (env_override) {

@@ -15,7 +15,6 @@
 #include "meshkit/vehicle_classes.hpp"
 #include "meshkit/vehicle_lod.hpp"
 #include "meshkit/vehicle_parametric.hpp"
-#include "pipeline/config_tables.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
@@ -38,21 +37,12 @@ std::string unit_names() {
 
 }  // namespace
 
-VehiclesConfig load_vehicles_config(const std::string& path) {
-  VehiclesConfig cfg;
-  if (path.empty()) return cfg;
-  ConfigFile(path).read(vehicles_table(), cfg);
-  return cfg;
-}
-
-json VehiclesConfig::to_json() const { return vehicles_table().write(*this); }
-
 BuiltVehicle build_vehicle(const std::string& name, const std::string& vclass, const std::string& model_file,
-                           const VehiclesConfig& cfg) {
+                           const VehiclesSettings& cfg) {
   const VehicleClassInfo* info = find_vehicle_class(vclass);
   if (!info) throw std::invalid_argument(name + ": vehicle class '" + vclass + "' is not modelled");
   VehicleDims dims = info->dims;
-  VehicleEntryConfig entry;
+  VehicleEntrySettings entry;
   if (auto it = cfg.entries.find(name); it != cfg.entries.end()) entry = it->second;
   if (entry.dims.length > 0) dims.length = entry.dims.length;
   if (entry.dims.width > 0) dims.width = entry.dims.width;
@@ -156,7 +146,7 @@ std::vector<SumoVType> add_vtypes(const VehiclesArgs& args, std::vector<LibraryE
 }
 
 // Model units: a bare UNIT for every model, then the config's, then CLASS=UNIT.
-void apply_model_units(const VehiclesArgs& args, const std::vector<LibraryEntry>& entries, VehiclesConfig& effective) {
+void apply_model_units(const VehiclesArgs& args, const std::vector<LibraryEntry>& entries, VehiclesSettings& effective) {
   std::string every_unit;
   std::map<std::string, std::string> class_unit;
   for (const auto& spec : args.model_units) {
@@ -182,8 +172,8 @@ void apply_model_units(const VehiclesArgs& args, const std::vector<LibraryEntry>
 }
 
 // Entry `index` of `count` built and written at each LOD that shrinks it; its manifest record.
-json write_entry(const LibraryEntry& e, std::size_t index, std::size_t count, const VehiclesConfig& effective,
-                 const VehiclesConfig& cfg, const fs::path& dir, const GltfOptions& gopt) {
+json write_entry(const LibraryEntry& e, std::size_t index, std::size_t count, const VehiclesSettings& effective,
+                 const VehiclesSettings& cfg, const fs::path& dir, const GltfOptions& gopt) {
   const auto te = std::chrono::steady_clock::now();
   BuiltVehicle built = build_vehicle(e.name, e.vclass, e.file, effective);
   for (const auto& w : built.model.warnings) spdlog::warn("{}: {}", e.name, w);
@@ -230,12 +220,12 @@ json custom_materials_json() {
 
 }  // namespace
 
-json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>& argv) {
+json run_vehicles_stage(const VehiclesArgs& args, const Settings& settings, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   if (args.out.empty()) throw std::invalid_argument("--out is required");
-  const VehiclesConfig cfg = load_vehicles_config(args.config);
+  const VehiclesSettings& cfg = settings.vehicles;
   std::vector<InputFile> inputs;
-  if (!args.config.empty()) inputs.push_back({"config", args.config});
+  if (!settings.file.empty()) inputs.push_back({"config", settings.file});
 
   // Entries: built-in classes, then imported models replacing a class, then vTypes.
   std::vector<LibraryEntry> entries;
@@ -245,7 +235,7 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
   for (const auto& c : classes) entries.push_back({c, c, ""});
   add_models(args, entries, inputs);
   const std::vector<SumoVType> vtypes = add_vtypes(args, entries, inputs);
-  VehiclesConfig effective = cfg;
+  VehiclesSettings effective = cfg;
   for (const auto& vt : vtypes) {
     auto& e = effective.entries[vt.id];
     if (e.dims.length <= 0) e.dims.length = vt.length;
@@ -266,6 +256,7 @@ json run_vehicles_stage(const VehiclesArgs& args, const std::vector<std::string>
                    {"vehicles", list},
                    {"custom_materials", custom_materials_json()},
                    {"provenance", provenance("vehicles", inputs, effective.to_json(), argv)}};
+  settings.record_sets(manifest["provenance"]);
   // Build times vary run to run; keep them out of the byte-compared manifest.
   json timings = json::object();
   for (auto& v : manifest["vehicles"]) {

@@ -336,3 +336,33 @@ TEST(CliTrace, Van3TwinRingRoadWithVehiclesOnItsLanes) {
   EXPECT_GT(paths, 190u);
   EXPECT_GT(building_hits, 0u);
 }
+
+TEST(CliTrace, SetChangesASettingLikeTheSameLineInAFile) {
+  auto dir = scratch_dir("set");
+  write_text(dir / "nodes.csv", "a,100,40,2\nb,150,45,2\nc,120,80,2\n");
+  const std::string base = "-q trace --scene " + demo_scene().string() + " --nodes " + (dir / "nodes.csv").string();
+  auto r = run_raysweep(base + " --out " + (dir / "default.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_raysweep(base + " --set tracer.specular=false --set tracer.max_depth=1 --out " + (dir / "set.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  write_text(dir / "c.toml", "[tracer]\nspecular = false\nmax_depth = 1\n");
+  r = run_raysweep(base + " --config " + (dir / "c.toml").string() + " --out " + (dir / "file.json").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  json def = json::parse(read_text(dir / "default.json")), set = json::parse(read_text(dir / "set.json")),
+       file = json::parse(read_text(dir / "file.json"));
+  EXPECT_NE(def["pairs"], set["pairs"]);   // the option changed the output...
+  EXPECT_EQ(file["pairs"], set["pairs"]);  // ...as the line in a file does
+  EXPECT_EQ(set["provenance"]["config"], file["provenance"]["config"]);
+  EXPECT_EQ(set["provenance"]["config"]["tracer"]["specular"], false);
+  EXPECT_EQ(set["provenance"]["set"], json({"tracer.specular=false", "tracer.max_depth=1"}));
+  // A bad option is the schema's error, naming the option, and writes nothing.
+  r = run_raysweep(base + " --set tracer.max_depth=99 --out " + (dir / "bad.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--set tracer.max_depth: tracer.max_depth: expected an integer in [0, 16], got 99"),
+            std::string::npos)
+      << r.output;
+  r = run_raysweep(base + " --set tracer.spekular=false --out " + (dir / "bad.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown key (did you mean 'specular'?)"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "bad.json"));
+}

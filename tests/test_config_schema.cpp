@@ -1,4 +1,4 @@
-// The declared config schema (pipeline/config_tables.cpp): its errors per value
+// The declared config schema (pipeline/settings/tables*.cpp): its errors per value
 // type, defaults, the recipes, docs/config.md and the provenance it feeds.
 #include <gtest/gtest.h>
 
@@ -9,13 +9,13 @@
 #include <regex>
 
 #include "pipeline/city_run.hpp"
-#include "pipeline/config.hpp"
-#include "pipeline/config_tables.hpp"
+#include "pipeline/settings/config_file.hpp"
+#include "pipeline/settings/settings.hpp"
+#include "pipeline/settings/tables.hpp"
 #include "pipeline/ns3_stage.hpp"
 #include "pipeline/radiomap_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/sweep_stage.hpp"
-#include "pipeline/trace_config.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/vehicles_stage.hpp"
 #include "test_util.hpp"
@@ -147,7 +147,7 @@ TEST(ConfigSchema, EveryTableIsCheckedByEveryLoader) {
   const fs::path dir = scratch_dir("cfg");
   write_text(dir / "c.toml", "[scene]\nground = true\n[radiomap]\nvoxl_m = 1\n");
   try {
-    load_scene_config((dir / "c.toml").string());
+    load_settings((dir / "c.toml").string());
     FAIL() << "no error";
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find(":4: radiomap.voxl_m: unknown key (did you mean 'voxel_m'?)"), std::string::npos)
@@ -167,12 +167,12 @@ TEST(ConfigSchema, ErrorsAcrossKeysNameTheLineToo) {
     return std::string();
   };
   write_text(c, "[sweep]\nbegin_s = 10\nend_s = 5\n");
-  EXPECT_EQ(error([&] { load_sweep_config(c); }), ":3: sweep.end_s: must not be before sweep.begin_s");
+  EXPECT_EQ(error([&] { load_settings(c); }), ":3: sweep.end_s: must not be before sweep.begin_s");
   write_text(dir / "n.xml", "");
   write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\nosm = \"n.xml\"\nmitsuba = \"n.xml\"\n");
-  EXPECT_EQ(error([&] { load_city_config(c); }), ":5: city.mitsuba: give exactly one of city.osm and city.mitsuba");
+  EXPECT_EQ(error([&] { load_city_settings(c); }), ":5: city.mitsuba: give exactly one of city.osm and city.mitsuba");
   write_text(c, "[city]\nname = \"x\"\nnet = \"n.xml\"\n");
-  EXPECT_EQ(error([&] { load_city_config(c); }), ":1: city.osm: give exactly one of city.osm and city.mitsuba");
+  EXPECT_EQ(error([&] { load_city_settings(c); }), ":1: city.osm: give exactly one of city.osm and city.mitsuba");
 }
 
 TEST(ConfigSchema, DefaultsAreFilledIn) {
@@ -194,7 +194,7 @@ TEST(ConfigSchema, DefaultsAreFilledIn) {
   EXPECT_EQ(defaults["sweep"]["block_frames"], 50);
   EXPECT_EQ(defaults["sinr"]["models"], json::array({"ray"}));
   // The loaders' structs hold the same values.
-  const TraceSettings s = load_trace_config((dir / "c.toml").string());
+  const TraceSettings s = load_settings((dir / "c.toml").string()).trace;
   EXPECT_EQ(s.tracer.max_depth, 2);
   EXPECT_EQ(s.tracer.rays_per_source, 6144);
   ASSERT_TRUE(s.tracer.materials.at("glass").thickness_m.has_value());
@@ -207,21 +207,21 @@ TEST(ConfigSchema, EffectiveConfigIsWhatTheLoadersRead) {
   // `raysweep config` prints.
   const std::string demo = (source_dir() / "datasets/demo/city.toml").string();
   const json eff = effective_config(demo);
-  EXPECT_EQ(load_scene_config(demo).to_json(), eff["scene"]);
-  EXPECT_EQ(load_vehicles_config(demo).to_json(), eff["vehicles"]);
-  EXPECT_EQ(load_sweep_config(demo).to_json(), eff["sweep"]);
-  const json trace = load_trace_config(demo).to_json();
+  EXPECT_EQ(load_settings(demo).scene.to_json(), eff["scene"]);
+  EXPECT_EQ(load_settings(demo).vehicles.to_json(), eff["vehicles"]);
+  EXPECT_EQ(load_settings(demo).sweep.to_json(), eff["sweep"]);
+  const json trace = load_settings(demo).trace.to_json();
   for (const char* t : {"radio", "tracer", "materials"}) EXPECT_EQ(trace[t], eff[t]) << t;
-  EXPECT_EQ(load_sinr_settings(demo).to_json(), eff["sinr"]);
-  EXPECT_EQ(load_ns3_settings(demo).to_json(), eff["ns3"]);
-  EXPECT_EQ(load_radiomap_settings(demo).to_json(), eff["radiomap"]);
+  EXPECT_EQ(load_settings(demo).sinr.to_json(), eff["sinr"]);
+  EXPECT_EQ(load_settings(demo).ns3.to_json(), eff["ns3"]);
+  EXPECT_EQ(load_settings(demo).radiomap.to_json(), eff["radiomap"]);
   // The recipe's values arrive in the structs.
-  EXPECT_EQ(load_sweep_config(demo).begin_s, 60);
-  EXPECT_EQ(load_sweep_config(demo).options.block_frames, 50u);
-  EXPECT_EQ(load_trace_config(demo).radio.antenna.pattern, raysweep::tracer::AntennaPattern::short_dipole);
-  EXPECT_EQ(load_sinr_settings(demo).models.size(), 4u);
-  EXPECT_EQ(load_radiomap_settings(demo).tx.at(0).id, "rsu1");
-  EXPECT_EQ(load_city_config(demo).name, "demo");
+  EXPECT_EQ(load_settings(demo).sweep.begin_s, 60);
+  EXPECT_EQ(load_settings(demo).sweep.options.block_frames, 50u);
+  EXPECT_EQ(load_settings(demo).trace.radio.antenna.pattern, raysweep::tracer::AntennaPattern::short_dipole);
+  EXPECT_EQ(load_settings(demo).sinr.models.size(), 4u);
+  EXPECT_EQ(load_settings(demo).radiomap.tx.at(0).id, "rsu1");
+  EXPECT_EQ(load_city_settings(demo).city.name, "demo");
   EXPECT_EQ(eff["traffic"]["seed"], 42);
   EXPECT_EQ(eff["traffic"]["classes"]["passenger"], 8.0);
 }
@@ -257,13 +257,7 @@ TEST(ConfigSchema, EveryRecipeParses) {
     SCOPED_TRACE(f.string());
     const json eff = effective_config(f.string());
     EXPECT_EQ(eff.size(), config_tables().size());
-    EXPECT_NO_THROW(load_scene_config(f.string()));
-    EXPECT_NO_THROW(load_vehicles_config(f.string()));
-    EXPECT_NO_THROW(load_trace_config(f.string()));
-    EXPECT_NO_THROW(load_sweep_config(f.string()));
-    EXPECT_NO_THROW(load_sinr_settings(f.string()));
-    EXPECT_NO_THROW(load_ns3_settings(f.string()));
-    EXPECT_NO_THROW(load_radiomap_settings(f.string()));
+    EXPECT_NO_THROW(load_settings(f.string()));  // every stage table
   }
 }
 
@@ -294,4 +288,52 @@ TEST(ConfigSchema, NoStageReadsTomlByHand) {
     if (e.path().extension() != ".cpp" && e.path().extension() != ".hpp") continue;
     EXPECT_FALSE(std::regex_search(read_text(e.path()), toml_use)) << name << " uses toml++ directly";
   }
+}
+
+TEST(ConfigSchema, SetChangesTheParsedFileAndIsCheckedLikeIt) {
+  const fs::path dir = scratch_dir("cfg");
+  const std::string c = (dir / "c.toml").string();
+  write_text(c, "[tracer]\nmax_depth = 2\n[sweep]\nbegin_s = 10\n");
+  // Values are TOML; a word that is not is a string; a later option wins.
+  const std::vector<std::string> sets = {"tracer.max_depth=3",       "tracer.diffuse=false", "radio.antenna=halfwave",
+                                         "sweep.ids=[\"a\", \"b\"]", "sweep.end_s=40",       "tracer.max_depth = 4",
+                                         "materials.glass.eps_r=5.5", "sweep.cfr=nr:2:10"};
+  const Settings s = load_settings(c, sets);
+  EXPECT_EQ(s.trace.tracer.max_depth, 4);
+  EXPECT_FALSE(s.trace.tracer.diffuse);
+  EXPECT_EQ(s.trace.radio.antenna.pattern, raysweep::tracer::AntennaPattern::halfwave_dipole);
+  EXPECT_EQ(s.sweep.ids, (std::vector<std::string>{"a", "b"}));
+  EXPECT_EQ(s.sweep.begin_s, 10);  // the file's other keys stay
+  EXPECT_EQ(s.sweep.end_s, 40);
+  ASSERT_TRUE(s.trace.tracer.materials.at("glass").eps_r.has_value());
+  EXPECT_EQ(*s.trace.tracer.materials.at("glass").eps_r, 5.5);
+  ASSERT_TRUE(s.sweep.cfr.has_value());
+  EXPECT_EQ(s.sweep.cfr->n_rb, 10);
+  // The effective config holds them (with or without a file); provenance records the options too.
+  EXPECT_EQ(s.effective["tracer"]["max_depth"], 4);
+  EXPECT_EQ(s.effective["sweep"]["cfr"], "nr:2:10");
+  EXPECT_EQ(effective_config(c, {"sweep.end_s=40"})["sweep"]["begin_s"], 10);
+  EXPECT_EQ(effective_config("", {"sweep.end_s=40"})["sweep"]["end_s"], 40);
+  EXPECT_EQ(load_settings("", {"ns3.subcarriers_per_band=2"}).ns3.subcarriers_per_band, 2u);
+  json prov = json::object();
+  s.record_sets(prov);
+  EXPECT_EQ(prov["set"], json(sets));
+  // Errors name the option where a file names its line.
+  auto error = [&](const std::vector<std::string>& bad) {
+    try {
+      load_settings(c, bad);
+    } catch (const ConfigError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_EQ(error({"tracer.max_depth=17"}),
+            "--set tracer.max_depth: tracer.max_depth: expected an integer in [0, 16], got 17");
+  EXPECT_EQ(error({"tracer.max_dept=3"}),
+            "--set tracer.max_dept: tracer.max_dept: unknown key (did you mean 'max_depth'?)");
+  EXPECT_EQ(error({"tracr.max_depth=3"}), "--set tracr.max_depth: unknown table [tracr] (did you mean [tracer]?)");
+  EXPECT_EQ(error({"tracer.diffuse=maybe"}), "--set tracer.diffuse: tracer.diffuse: expected true or false, got \"maybe\"");
+  EXPECT_EQ(error({"sweep.end_s=5"}), "--set sweep.end_s: sweep.end_s: must not be before sweep.begin_s");
+  EXPECT_EQ(error({"tracer"}), "--set tracer: expected TABLE.KEY=VALUE");
+  EXPECT_EQ(error({"max_depth=3"}), "--set max_depth=3: expected TABLE.KEY=VALUE");
 }

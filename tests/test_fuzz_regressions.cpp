@@ -20,8 +20,8 @@
 #include "meshkit/model_import.hpp"
 #include "meshkit/osm_buildings.hpp"
 #include "meshkit/ply_io.hpp"
-#include "pipeline/config.hpp"
 #include "pipeline/radiomap_stage.hpp"
+#include "pipeline/settings/config_error.hpp"
 #include "test_util.hpp"
 
 namespace fs = std::filesystem;
@@ -54,7 +54,7 @@ const std::map<std::string, Target>& targets() {
                  }
                  meshkit::import_model(p, {});
                }}},
-      {"toml", {"city.toml", [](const std::string& p) { pipeline::load_radiomap_settings(p); }}},
+      {"toml", {"city.toml", [](const std::string& p) { pipeline::load_settings(p); }}},
   };
   return t;
 }
@@ -320,7 +320,7 @@ TEST(FuzzRegressions, TomlSyntaxErrorInRadiomapSettingsNamesFileAndLine) {
   const fs::path dir = scratch_dir("toml");
   const fs::path in = copy_as(corpus("toml", "crash-733843f089030c8d9b873013e131d3581d03168a"), dir, "c.toml");
   try {
-    pipeline::load_radiomap_settings(in.string());
+    pipeline::load_settings(in.string());
     FAIL() << "no error";
   } catch (const pipeline::ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find(in.string() + ":2:"), std::string::npos) << e.what();

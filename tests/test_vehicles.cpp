@@ -270,7 +270,7 @@ struct BmwCase {
 void check_bmw(const BmwCase& c) {
   const auto path = raysweep::test::shared_data() / "openmaterial-validation-vehicles/objects" / c.file;
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "../shared data absent";
-  raysweep::pipeline::VehiclesConfig cfg;
+  raysweep::pipeline::VehiclesSettings cfg;
   cfg.scale_to_class = false;  // keep the model's own size
   auto built = raysweep::pipeline::build_vehicle(c.vclass, c.vclass, path.string(), cfg);
   const auto& m = built.model;
@@ -332,7 +332,7 @@ TEST(BmwModels, TruckLoadsWithRealSizeAndMaterials) {
 TEST(BmwModels, ScaledToClassDimensions) {
   const auto path = raysweep::test::shared_data() / "openmaterial-validation-vehicles/objects/vehicle_example.gltf";
   if (!std::filesystem::exists(path)) GTEST_SKIP() << "../shared data absent";
-  raysweep::pipeline::VehiclesConfig cfg;
+  raysweep::pipeline::VehiclesSettings cfg;
   cfg.entries["passenger"].dims = {4.3, 1.8, 1.3};
   auto built = raysweep::pipeline::build_vehicle("passenger", "passenger", path.string(), cfg);
   const VehicleDims d = built.model.dims();

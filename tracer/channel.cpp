@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <stdexcept>
 #include <string>
@@ -10,11 +11,32 @@ namespace raysweep::tracer {
 
 OfdmGrid ofdm_80211p(double carrier_hz) { return OfdmGrid{carrier_hz, 156250.0, 64}; }
 
-OfdmGrid ofdm_nr(int numerology, int n_rb, double carrier_hz) {
+namespace {
+void check_nr(int numerology, int n_rb) {
   if (numerology < 0 || numerology > 4)
     throw std::invalid_argument("ofdm_nr: numerology must be 0..4, got " + std::to_string(numerology));
   if (n_rb < 1) throw std::invalid_argument("ofdm_nr: n_rb must be >= 1, got " + std::to_string(n_rb));
+}
+}  // namespace
+
+OfdmGrid ofdm_nr(int numerology, int n_rb, double carrier_hz) {
+  check_nr(numerology, n_rb);
   return OfdmGrid{carrier_hz, 15e3 * double(1 << numerology), 12 * n_rb};
+}
+
+OfdmGridSpec parse_ofdm_grid_spec(const std::string& spec, const std::string& what) {
+  OfdmGridSpec g{spec};
+  if (spec == "80211p") return g;
+  char tail = 0;
+  if (std::sscanf(spec.c_str(), "nr:%d:%d%c", &g.numerology, &g.n_rb, &tail) != 2)
+    throw std::invalid_argument(what + " '" + spec + "': expected 80211p or nr:NUMEROLOGY:N_RB (e.g. nr:2:10)");
+  check_nr(g.numerology, g.n_rb);
+  g.nr = true;
+  return g;
+}
+
+OfdmGrid ofdm_grid(const OfdmGridSpec& spec, double carrier_hz) {
+  return spec.nr ? ofdm_nr(spec.numerology, spec.n_rb, carrier_hz) : ofdm_80211p(carrier_hz);
 }
 
 std::vector<std::complex<double>> frequency_response(const std::vector<Path>& paths, const OfdmGrid& grid) {

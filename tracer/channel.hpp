@@ -3,6 +3,7 @@
 #pragma once
 
 #include <complex>
+#include <string>
 #include <vector>
 
 #include "tracer/path.hpp"
@@ -23,6 +24,18 @@ OfdmGrid ofdm_80211p(double carrier_hz = 5.9e9);
 // NR: numerology mu (0..4, spacing 15 kHz * 2^mu) with n_rb resource blocks of
 // 12 subcarriers. Throws std::invalid_argument for mu outside 0..4 or n_rb < 1.
 OfdmGrid ofdm_nr(int numerology, int n_rb, double carrier_hz = 5.9e9);
+
+// An OFDM grid as a setting names it, "80211p" or "nr:MU:NRB", before the
+// carrier is known: the spec is checked when read, the grid made once the
+// radio's carrier is (the grid's shape does not depend on it).
+struct OfdmGridSpec {
+  std::string text;  // as given, for the records
+  bool nr = false;   // else IEEE 802.11p
+  int numerology = 0, n_rb = 0;
+};
+// Throws std::invalid_argument naming `what` (the option or key) and the spec.
+OfdmGridSpec parse_ofdm_grid_spec(const std::string& spec, const std::string& what);
+OfdmGrid ofdm_grid(const OfdmGridSpec& spec, double carrier_hz);
 
 // H(f_c + df_k) = sum_i a_i exp(-j 2 pi df_k tau_i): a_i already carries the
 // carrier phase, so H at df = 0 is the coherent narrowband channel.

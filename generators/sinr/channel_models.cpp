@@ -31,6 +31,24 @@ ChannelModelKind parse_channel_model(const std::string& name) {
   throw std::invalid_argument("unknown channel model '" + name + "' (ray, tr36885, tr37885-urban, tr37885-highway)");
 }
 
+std::string SinrModel::label() const {
+  return std::string(channel_model_name(kind)) + (los_from_ray ? "+los-from-ray" : "");
+}
+
+SinrModel parse_sinr_model(const std::string& s) {
+  SinrModel m;
+  std::string name = s;
+  const std::string suffix = "+los-from-ray";
+  if (name.size() > suffix.size() && name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0) {
+    m.los_from_ray = true;
+    name.resize(name.size() - suffix.size());
+  }
+  m.kind = parse_channel_model(name);
+  if (m.los_from_ray && m.kind == ChannelModelKind::ray)
+    throw std::invalid_argument("'ray+los-from-ray' makes no sense: the ray model is the traced channel");
+  return m;
+}
+
 // The formulas take distances as given; the models clamp them to min_distance_m
 // first (TR 36.885: "pathloss at 3 m is used if distance is less than 3 m").
 namespace formulas {

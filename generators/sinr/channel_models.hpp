@@ -32,6 +32,16 @@ enum class ChannelModelKind { ray, tr36885, tr37885_urban, tr37885_highway };
 const char* channel_model_name(ChannelModelKind k);           // "ray", "tr36885", "tr37885-urban", "tr37885-highway"
 ChannelModelKind parse_channel_model(const std::string& name);  // throws std::invalid_argument listing the names
 
+// One channel model of a comparison, as a config or the command line names it:
+// "ray", "tr36885", "tr37885-urban", "tr37885-highway", each 3GPP one
+// optionally with "+los-from-ray".
+struct SinrModel {
+  ChannelModelKind kind = ChannelModelKind::ray;
+  bool los_from_ray = false;
+  std::string label() const;  // e.g. "tr37885-urban+los-from-ray"
+};
+SinrModel parse_sinr_model(const std::string& s);  // throws std::invalid_argument
+
 struct StochasticOptions {
   std::uint64_t seed = 1;
   bool los_from_ray = false;

@@ -6,7 +6,7 @@
 #include <stdexcept>
 
 #include "meshkit/errors.hpp"
-#include "pipeline/config.hpp"
+#include "pipeline/settings/config_error.hpp"
 
 namespace raysweep::pipeline {
 

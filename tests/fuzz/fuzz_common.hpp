@@ -29,7 +29,7 @@
 #include <spdlog/spdlog.h>
 
 #include "meshkit/errors.hpp"
-#include "pipeline/config.hpp"
+#include "pipeline/settings/config_error.hpp"
 
 namespace raysweep::fuzz {
 

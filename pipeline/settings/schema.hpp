@@ -26,7 +26,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "pipeline/config.hpp"
+#include "pipeline/settings/config_error.hpp"
 
 namespace raysweep::pipeline::schema {
 
@@ -45,6 +45,13 @@ struct At {
   // "expected EXPECT, got <the value>".
   [[noreturn]] void expected(const toml::node& n, const std::string& expect) const;
 };
+
+// A value given on the command line (`--set TABLE.KEY=VALUE`) rather than in
+// the file carries "--set TABLE.KEY" as its source: errors name that instead
+// of a file line, and its relative paths start at the working directory.
+// Returns that source, or nullopt for a value from the file.
+std::optional<std::string> set_option(const toml::node& n);
+inline constexpr const char* kSetPrefix = "--set ";
 
 // The value as an error message shows it: 3, -1.5, "text", true, an array, a table.
 std::string describe(const toml::node& n);

@@ -1,4 +1,4 @@
-#include "pipeline/config_schema.hpp"
+#include "pipeline/settings/schema.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,14 @@
 
 namespace raysweep::pipeline::schema {
 
+std::optional<std::string> set_option(const toml::node& n) {
+  const auto& path = n.source().path;
+  if (path && path->rfind(kSetPrefix, 0) == 0) return *path;
+  return std::nullopt;
+}
+
 void At::fail(const toml::node& n, const std::string& msg) const {
+  if (const auto set = set_option(n)) throw ConfigError(*set + ": " + (key.empty() ? "" : key + ": ") + msg);
   const auto line = n.source().begin.line;
   std::string where = src ? src->file : std::string("config");
   if (line > 0) where += ":" + std::to_string(line);

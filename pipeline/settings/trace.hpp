@@ -1,7 +1,6 @@
-// [radio], [tracer] and [materials.<name>] tables of a TOML config.
+// [radio], [tracer] and [materials.<name>]: the link and the path solver
+// every tracing stage shares.
 #pragma once
-
-#include <string>
 
 #include <nlohmann/json.hpp>
 
@@ -14,9 +13,5 @@ struct TraceSettings {
   tracer::TracerConfig tracer;
   nlohmann::json to_json() const;  // effective settings, defaults filled in
 };
-
-// Unknown keys, wrong types and out-of-range values are ConfigErrors naming
-// file, key and line. An empty path gives the defaults.
-TraceSettings load_trace_config(const std::string& path);
 
 }  // namespace raysweep::pipeline

@@ -1,0 +1,30 @@
+// [sweep]: which frames and vehicles `raysweep sweep` traces, and how.
+#pragma once
+
+#include <cstddef>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "generators/sweep.hpp"
+#include "tracer/channel.hpp"
+
+namespace raysweep::pipeline {
+
+struct SweepSettings {
+  double begin_s = -1e300, end_s = 1e300, step_s = 0;
+  std::vector<std::string> ids, types;
+  std::vector<double> area;      // empty or xmin, ymin, xmax, ymax
+  std::size_t max_vehicles = 0;  // 0: all; else the first vehicles to appear, refilled as they leave
+  std::string outside = "error"; // vehicles outside the scene: "error" or "drop"
+  // "80211p" | "nr:MU:NRB", checked when read; the grid needs [radio]'s carrier.
+  std::optional<tracer::OfdmGridSpec> cfr;
+  int lod = -1;
+  std::string exclude_objects;
+  generators::SweepOptions options;
+  nlohmann::json to_json() const;
+};
+
+}  // namespace raysweep::pipeline
