@@ -1,6 +1,7 @@
 // The ns-3 lookup table (generators/ns3_table.hpp): build from a channel
-// dataset whose CFRs are known in closed form, read back, validate, summarise,
-// and refuse corrupt files with messages naming the file and element.
+// dataset whose CFRs are known in closed form, read back, validate and
+// summarise. Corrupt files and the ns3-table command:
+// tests/cli/test_cli_ns3_table.cpp.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -12,83 +13,13 @@
 #include "generators/dataset_writer.hpp"
 #include "generators/ns3_table.hpp"
 #include "meshkit/errors.hpp"
+#include "ns3_table_fixtures.hpp"
 #include "test_util.hpp"
 
 namespace rg = raysweep::generators;
 namespace fs = std::filesystem;
 using namespace raysweep::test;
-
-namespace {
-
-constexpr std::uint32_t kK = 8;  // subcarriers
-constexpr double kSpacing = 156250, kCarrier = 5.9e9;
-
-// |H_k| = amp(a, b, f) * (1 + k / 8): mean |H|^2 and band means in closed form.
-double amp(std::uint32_t a, std::uint32_t b, std::size_t f) { return 1e-3 * (1 + a + 2 * b + 0.1 * f); }
-double hk(std::uint32_t a, std::uint32_t b, std::size_t f, std::uint32_t k) { return amp(a, b, f) * (1 + k / 8.0); }
-
-// 3 nodes, 4 frames; node 2 only in frames 2 and 3; link (0, 1) of frame 1 has no path.
-fs::path write_dataset(const fs::path& dir, bool with_cfr) {
-  rg::DatasetHeader h;
-  h.raysweep_version = "test";
-  h.git_hash = "test";
-  h.config = nlohmann::json::object();
-  h.inputs = nlohmann::json::array();
-  h.provenance = nlohmann::json::object();
-  h.carrier_hz = kCarrier;
-  h.bandwidth_hz = 10e6;
-  h.cfr_subcarriers = with_cfr ? kK : 0;
-  h.cfr_subcarrier_spacing_hz = with_cfr ? kSpacing : 0;
-  const fs::path file = dir / (with_cfr ? "cfr.h5" : "plain.h5");
-  rg::DatasetWriter w(file, h);
-  for (std::size_t f = 0; f < 4; ++f) {
-    rg::FrameRecord fr;
-    fr.time_s = 5.0 + 0.1 * f;
-    const std::uint32_t n = f >= 2 ? 3 : 2;
-    for (std::uint32_t i = 0; i < n; ++i) {
-      rg::NodeState s;
-      s.node = i;
-      s.x = 10.0 * i + f;
-      s.y = -2.0 * i;
-      s.z = 0.3;
-      s.vx = 10;
-      s.vy = static_cast<float>(i);
-      fr.nodes.push_back(s);
-    }
-    for (std::uint32_t a = 0; a < n; ++a)
-      for (std::uint32_t b = a + 1; b < n; ++b) {
-        rg::LinkRecord l;
-        l.tx = a;
-        l.rx = b;
-        l.los_class = static_cast<std::uint8_t>((a + b + f) % 3);
-        const bool no_path = f == 1 && a == 0 && b == 1;
-        const double g = no_path ? -std::numeric_limits<double>::infinity() : 20 * std::log10(amp(a, b, f)) - 3;
-        l.gain_coherent_db = l.gain_incoherent_db = static_cast<float>(g);
-        l.path_count = 0;
-        fr.links.push_back(l);
-        if (with_cfr)
-          for (std::uint32_t k = 0; k < kK; ++k)
-            fr.cfr.emplace_back(no_path ? 0.0f : static_cast<float>(hk(a, b, f, k)), 0.0f);
-      }
-    w.append(fr);
-  }
-  std::vector<rg::NodeInfo> nodes(3);
-  for (std::uint32_t i = 0; i < 3; ++i) nodes[i].id = "veh" + std::to_string(i);
-  w.finish(nodes, {});
-  return file;
-}
-
-rg::Ns3TableHeader header() {
-  rg::Ns3TableHeader h;
-  h.raysweep_version = "test";
-  h.git_hash = "test";
-  h.config = nlohmann::json::object();
-  h.inputs = nlohmann::json::array();
-  h.provenance = {{"stage", "test"}};
-  return h;
-}
-
-}  // namespace
+using namespace raysweep::test::ns3;
 
 TEST(Ns3Table, BuildFromCfrRoundTrip) {
   const fs::path dir = scratch_dir("ns3_table_cfr");
@@ -189,62 +120,6 @@ TEST(Ns3Table, WriterRejectsInconsistentFrames) {
   w.add_frame(1.0, st, {{0, 1, -60, 0}}, {});
   EXPECT_THROW(w.add_frame(1.0, st, {{0, 1, -60, 0}}, {}), std::invalid_argument);   // time not after
   EXPECT_THROW(w.finish({rg::NodeInfo{}}), std::invalid_argument);                    // node 1 beyond the table
-}
-
-TEST(Ns3Table, CorruptFilesNameFileAndElement) {
-  const fs::path dir = scratch_dir("ns3_table_corrupt");
-  const fs::path good = dir / "good.h5";
-  rg::build_ns3_table(write_dataset(dir, true).string(), good, header(), 4);
-  auto load_error = [](const fs::path& p) {
-    try {
-      rg::Ns3Table::load(p.string());
-    } catch (const raysweep::meshkit::InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  // Missing, not HDF5, truncated.
-  EXPECT_NE(load_error(dir / "missing.h5").find((dir / "missing.h5").string()), std::string::npos);
-  write_text(dir / "text.h5", "not hdf5");
-  EXPECT_NE(load_error(dir / "text.h5").find("not an HDF5 file"), std::string::npos);
-  {
-    const std::string bytes = read_text(good);
-    write_text(dir / "half.h5", bytes.substr(0, bytes.size() / 2));
-  }
-  EXPECT_NE(load_error(dir / "half.h5").find((dir / "half.h5").string()), std::string::npos);
-  EXPECT_FALSE(rg::validate_dataset((dir / "half.h5").string()).empty());
-  // A channel dataset is not a table.
-  const std::string e = load_error(dir / "cfr.h5");
-  EXPECT_NE(e.find("attribute format"), std::string::npos) << e;
-  // Through the CLI: validate says INVALID (exit 1), info fails naming the file (exit 2).
-  const auto v = run_raysweep("validate " + (dir / "half.h5").string());
-  EXPECT_EQ(v.exit_code, 1) << v.output;
-  const auto i = run_raysweep("info " + (dir / "text.h5").string());
-  EXPECT_EQ(i.exit_code, 2) << i.output;
-  EXPECT_NE(i.output.find("text.h5"), std::string::npos);
-}
-
-TEST(Ns3Table, CliWritesThroughATemporaryFileAndRecordsProvenance) {
-  const fs::path dir = scratch_dir("ns3_table_cli");
-  const fs::path ds = write_dataset(dir, true);
-  write_text(dir / "c.toml", "[ns3]\nsubcarriers_per_band = 2\n");
-  const auto r = run_raysweep("-q ns3-table --channels " + ds.string() + " --out " + (dir / "t.h5").string() +
-                              " --config " + (dir / "c.toml").string());
-  ASSERT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_FALSE(fs::exists(dir / "t.h5.tmp"));
-  const rg::Ns3Table t = rg::Ns3Table::load((dir / "t.h5").string());
-  EXPECT_EQ(t.bands().count(), 4u);
-  EXPECT_EQ(t.provenance().value("stage", std::string()), "ns3-table");
-  const auto v = run_raysweep("validate " + (dir / "t.h5").string());
-  EXPECT_EQ(v.exit_code, 0) << v.output;
-  // Usage and config errors: exit 2, naming the key.
-  write_text(dir / "bad.toml", "[ns3]\nbands = 2\n");
-  const auto b = run_raysweep("ns3-table --channels " + ds.string() + " --out " + (dir / "u.h5").string() +
-                              " --config " + (dir / "bad.toml").string());
-  EXPECT_EQ(b.exit_code, 2);
-  EXPECT_NE(b.output.find("ns3.bands"), std::string::npos) << b.output;
-  EXPECT_FALSE(fs::exists(dir / "u.h5"));
-  EXPECT_EQ(run_raysweep("ns3-table --out x.h5").exit_code, 2);
 }
 
 TEST(Ns3Table, EmbeddedSchemaMatchesSourceFile) {
