@@ -2,7 +2,7 @@
 // (dataset.hpp), a range of frames at a time: what merging shard files needs.
 // Appending the frames read from a file to a DatasetWriter with the file's
 // header and finishing it with its node and object tables writes the same
-// bytes again (tests/test_cli_shard.cpp checks it).
+// bytes again (tests/cli/test_cli_shard.cpp checks it).
 #pragma once
 
 #include <cstdint>

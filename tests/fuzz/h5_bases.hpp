@@ -1,6 +1,6 @@
 // The valid base files the HDF5 harnesses edit, written by raysweep's own
 // writers (small: a handful of nodes, frames and records of every kind).
-// Also used by tests/test_fuzz_regressions.cpp, so no libFuzzer header here.
+// Also used by tests/pipeline/test_fuzz_regressions.cpp, so no libFuzzer header here.
 #pragma once
 
 #include <cmath>

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Checks python/raysweep_dataset.py against a dataset written by tests/test_dataset.cpp.
+"""Checks python/raysweep_dataset.py against a dataset written by tests/generators/test_dataset.cpp.
 
 usage: test_reader.py DATASET.h5 EXPECTED.json SCRATCH_DIR
 EXPECTED.json holds the values the C++ test computed from the records it wrote (-inf gains as null).

@@ -16,6 +16,7 @@
 
 #include "tracer/image_search.hpp"
 #include "tracer_fixtures.hpp"
+#include "vehicle_fixtures.hpp"
 
 using namespace raysweep;
 using namespace raysweep::test;

@@ -9,6 +9,7 @@
 #include "meshkit/vehicle_model.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer_fixtures.hpp"
+#include "vehicle_fixtures.hpp"
 
 using namespace raysweep;
 using namespace raysweep::test;

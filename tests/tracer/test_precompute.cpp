@@ -1,15 +1,14 @@
-// Precomputed vehicle-model tables kept between processes (tracer/precompute.hpp,
-// pipeline/precompute_store.hpp): a scene that loads them traces exactly what
-// one that builds them traces; a changed model or a damaged table is rebuilt,
-// never read.
+// Precomputed vehicle-model tables kept between processes (tracer/precompute.hpp):
+// a scene that loads them traces exactly what one that builds them traces; a
+// changed model or a damaged table is rebuilt, never read. (The file store:
+// tests/pipeline/test_precompute_store.cpp.)
 #include <gtest/gtest.h>
 
 #include <cstring>
 #include <map>
 
-#include "pipeline/precompute_store.hpp"
-#include "test_util.hpp"
 #include "tracer_fixtures.hpp"
+#include "vehicle_fixtures.hpp"
 
 using namespace raysweep;
 using namespace raysweep::test;
@@ -184,20 +183,4 @@ TEST(Precompute, DamagedTablesAreRebuiltNotRead) {
   EXPECT_EQ(store->saves, 4 + 3);
   expect_same_paths(plain.snap, again.snap);
   expect_same_tables(*plain.scene, *again.scene);
-}
-
-TEST(Precompute, FileStoreWritesWholeFilesAndSurvivesAnUnwritableFolder) {
-  const auto dir = scratch_dir("precompute_store");
-  pipeline::FilePrecomputeStore store(dir / "cache");
-  EXPECT_FALSE(store.load("k1"));
-  store.save("k1", "abc");
-  EXPECT_EQ(store.load("k1"), "abc");
-  std::size_t files = 0;
-  for (const auto& e : fs::directory_iterator(dir / "cache")) files += e.path().filename() == "k1.bin";
-  EXPECT_EQ(files, 1u);
-  // A folder that cannot exist: saving is a warning, loading finds nothing.
-  write_text(dir / "blocker", "a file where the cache folder would be");
-  pipeline::FilePrecomputeStore blocked(dir / "blocker" / "cache");
-  blocked.save("k1", "abc");
-  EXPECT_FALSE(blocked.load("k1"));
 }

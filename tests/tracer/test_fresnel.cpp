@@ -7,6 +7,7 @@
 
 #include "tracer/fresnel.hpp"
 #include "tracer_fixtures.hpp"
+#include "vehicle_fixtures.hpp"
 
 using namespace raysweep;
 using namespace raysweep::test;

@@ -1,23 +1,15 @@
 // Hand-built scenes for the tracer tests: quads (ground, walls) and boxes
-// with known planes, materials and object names.
+// with known planes, materials and object names. The vehicle library's models
+// (which need the pipeline library) are in vehicle_fixtures.hpp.
 #pragma once
 
 #include <string>
 
 #include "meshkit/scene.hpp"
-#include "meshkit/vehicle_model.hpp"
-#include "pipeline/trace_inputs.hpp"
 #include "scene_fixtures.hpp"
 #include "tracer/tracer.hpp"
 
 namespace raysweep::test {
-
-// Registers the built-in parametric model of a class; returns its index.
-inline std::uint32_t add_library_model(tracer::TraceScene& scene, const std::string& vclass) {
-  pipeline::VehicleLibrary lib;
-  const auto& m = lib.model(vclass);
-  return scene.add_vehicle_model(vclass, meshkit::to_scene(m), m.antenna);
-}
 
 // The next unused planar-face id of a scene.
 inline std::uint32_t next_face_id(const meshkit::Scene& scene) {

@@ -1,5 +1,6 @@
 // HDF5 channel dataset: writer round trip (read back with the HDF5 C API),
-// validation of corrupt files, determinism, frame blocks, and the Python reader.
+// validation of corrupt files, determinism, and the Python reader. Frame
+// blocks: test_frame_block.cpp.
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 #include <unistd.h>
@@ -18,13 +19,14 @@
 
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_writer.hpp"
-#include "generators/frame_block.hpp"
+#include "dataset_fixtures.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"
 
 namespace fs = std::filesystem;
 using namespace raysweep::generators;
+using namespace raysweep::generators::fixtures;
 using raysweep::meshkit::InputError;
 using raysweep::test::H5;
 using raysweep::test::has_attr;
@@ -41,100 +43,6 @@ using raysweep::test::scratch_dir;
 using raysweep::test::source_dir;
 
 namespace {
-
-constexpr float kNoGain = -std::numeric_limits<float>::infinity();
-constexpr std::uint32_t kK = 4;  // subcarriers
-constexpr std::uint32_t kStaticObjects = 3;
-
-fs::path tmp_dir(const std::string& name) { return scratch_dir(name + "-" + std::to_string(::getpid())); }
-
-// ---------------------------------------------------------------------------
-// Test records: 1 RSU (node 0) and 2 vehicles (nodes 1, 2), three frames, links
-// with 1, 3 and 0 paths (one out of range with -inf gains), interactions, CFR.
-
-struct Builder {
-  std::uint32_t path_counter = 0, interaction_counter = 0, link_counter = 0;
-
-  NodeState state(std::uint32_t node, double t) {
-    NodeState s;
-    s.node = node;
-    s.x = 10.0 + 25.0 * node + 12.5 * t;
-    s.y = 20.0 - 3.0 * node;
-    s.z = node == 0 ? 6.0 : 0.25;
-    s.vx = node == 0 ? 0.f : 12.5f;
-    s.vy = node == 2 ? -1.5f : 0.f;
-    s.vz = 0.f;
-    s.heading_deg = node == 0 ? 0.f : 90.f + static_cast<float>(node);
-    return s;
-  }
-
-  // Adds a link with paths whose interaction counts and objects are given.
-  void link(FrameRecord& f, std::uint32_t tx, std::uint32_t rx, std::uint8_t los, std::uint8_t flags,
-            const std::vector<std::vector<std::uint32_t>>& path_objects) {
-    LinkRecord l;
-    l.tx = tx;
-    l.rx = rx;
-    l.los_class = los;
-    l.flags = flags;
-    l.blocker_count = static_cast<std::uint16_t>(los == 0 ? 0 : los + 1);
-    l.path_count = static_cast<std::uint32_t>(path_objects.size());
-    const std::uint32_t li = link_counter++;
-    l.paths_below_threshold = (flags & kLinkOutOfRange) ? 0 : 7 * li + 1;
-    l.los_class_fresnel = static_cast<std::uint8_t>(std::max<int>(los, li % 3));
-    l.fresnel_clearance = 1.0f - 0.37f * static_cast<float>(li);
-    l.vehicle_loss_db = 2.5f * static_cast<float>(li % 4);
-    if (path_objects.empty()) {
-      l.gain_coherent_db = kNoGain;
-      l.gain_incoherent_db = kNoGain;
-      l.first_delay_s = 0;
-      l.rms_delay_spread_s = 0;
-    } else {
-      l.gain_coherent_db = -60.5f - static_cast<float>(li);
-      l.gain_incoherent_db = -61.25f - static_cast<float>(li);
-      l.first_delay_s = 1e-7 * (li + 1);
-      l.rms_delay_spread_s = 2.5e-9f * static_cast<float>(li);
-    }
-    f.links.push_back(l);
-    for (std::size_t p = 0; p < path_objects.size(); ++p) {
-      const std::uint32_t j = path_counter++;
-      PathRecord r;
-      r.a = {1e-3f * static_cast<float>(j + 1), -5e-4f * static_cast<float>(j)};
-      r.tau_s = l.first_delay_s + 1e-8 * static_cast<double>(p);
-      r.theta_t = 0.1f * static_cast<float>(j), r.phi_t = -0.2f * static_cast<float>(j);
-      r.theta_r = 1.5f - 0.05f * static_cast<float>(j), r.phi_r = 3.0f - 0.1f * static_cast<float>(j);
-      r.doppler_hz = 10.f * static_cast<float>(j) - 30.f;
-      r.interaction_count = static_cast<std::uint8_t>(path_objects[p].size());
-      f.paths.push_back(r);
-      for (std::uint32_t obj : path_objects[p]) {
-        const std::uint32_t m = interaction_counter++;
-        InteractionRecord it;
-        it.type = static_cast<std::uint8_t>(1 + m % 4);
-        it.object = obj;
-        it.x = static_cast<float>(m), it.y = 2.f * static_cast<float>(m), it.z = 0.5f * static_cast<float>(m);
-        f.interactions.push_back(it);
-      }
-    }
-    for (std::uint32_t k = 0; k < kK; ++k)
-      f.cfr.emplace_back(static_cast<float>(li * 10 + k), -0.5f * static_cast<float>(k));
-  }
-
-  std::vector<FrameRecord> frames() {
-    std::vector<FrameRecord> out(3);
-    out[0].time_s = 0.0;
-    out[1].time_s = 0.1;
-    out[2].time_s = 0.2;
-    for (std::uint32_t n : {0u, 1u, 2u}) out[0].nodes.push_back(state(n, 0.0));
-    link(out[0], 0, 1, 0, 0, {{}});                 // LOS, 1 direct path
-    link(out[0], 0, 2, 2, 0, {{0}, {1, 2}, {}});    // NLOS, 3 paths
-    link(out[0], 1, 2, 1, kLinkOutOfRange, {});     // out of range: no paths
-    for (std::uint32_t n : {0u, 1u, 2u}) out[1].nodes.push_back(state(n, 0.1));
-    link(out[1], 0, 1, 0, kLinkCached, {{kStaticObjects + 1}});
-    link(out[1], 1, 2, 1, 0, {{kStaticObjects + 2, 0}, {}, {2}});
-    for (std::uint32_t n : {0u, 2u}) out[2].nodes.push_back(state(n, 0.2));  // vehicle 1 has left
-    link(out[2], 0, 2, 2, 0, {{0, 1, 2}});
-    return out;
-  }
-};
 
 std::vector<NodeInfo> test_nodes() {
   std::vector<NodeInfo> n(3);
@@ -174,11 +82,6 @@ void write_test_dataset(const fs::path& file, bool finish = true) {
   DatasetWriter w(file, test_header());
   for (const auto& f : frames) w.append(f);
   if (finish) w.finish(test_nodes(), test_objects());
-}
-
-void write_bytes(const fs::path& p, const std::string& bytes) {
-  std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
 bool mentions(const std::vector<std::string>& problems, const std::string& what) {
@@ -760,205 +663,6 @@ TEST(Dataset, EmbeddedSchemaMatchesSourceFile) {
   EXPECT_EQ(dataset_schema_json(), on_disk);
   EXPECT_EQ(dataset_schema().at("schema_version"), kDatasetSchemaVersion);
   EXPECT_EQ(dataset_schema().at("format"), kDatasetFormat);
-}
-
-// ---------------------------------------------------------------------------
-// Frame blocks.
-
-namespace {
-
-template <class T>
-auto bits(T v) {
-  if constexpr (std::is_same_v<T, float>)
-    return std::bit_cast<std::uint32_t>(v);
-  else if constexpr (std::is_same_v<T, double>)
-    return std::bit_cast<std::uint64_t>(v);
-  else
-    return v;
-}
-
-void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecord>& b) {
-  ASSERT_EQ(a.size(), b.size());
-  for (std::size_t f = 0; f < a.size(); ++f) {
-    const auto &x = a[f], &y = b[f];
-    EXPECT_EQ(bits(x.time_s), bits(y.time_s));
-    ASSERT_EQ(x.nodes.size(), y.nodes.size());
-    for (std::size_t i = 0; i < x.nodes.size(); ++i) {
-      const auto &p = x.nodes[i], &q = y.nodes[i];
-      EXPECT_EQ(p.node, q.node);
-      EXPECT_EQ(bits(p.x), bits(q.x));
-      EXPECT_EQ(bits(p.y), bits(q.y));
-      EXPECT_EQ(bits(p.z), bits(q.z));
-      EXPECT_EQ(bits(p.vx), bits(q.vx));
-      EXPECT_EQ(bits(p.vy), bits(q.vy));
-      EXPECT_EQ(bits(p.vz), bits(q.vz));
-      EXPECT_EQ(bits(p.heading_deg), bits(q.heading_deg));
-    }
-    ASSERT_EQ(x.links.size(), y.links.size());
-    for (std::size_t i = 0; i < x.links.size(); ++i) {
-      const auto &p = x.links[i], &q = y.links[i];
-      EXPECT_EQ(p.tx, q.tx);
-      EXPECT_EQ(p.rx, q.rx);
-      EXPECT_EQ(p.los_class, q.los_class);
-      EXPECT_EQ(p.flags, q.flags);
-      EXPECT_EQ(p.blocker_count, q.blocker_count);
-      EXPECT_EQ(bits(p.gain_coherent_db), bits(q.gain_coherent_db));
-      EXPECT_EQ(bits(p.gain_incoherent_db), bits(q.gain_incoherent_db));
-      EXPECT_EQ(bits(p.first_delay_s), bits(q.first_delay_s));
-      EXPECT_EQ(bits(p.rms_delay_spread_s), bits(q.rms_delay_spread_s));
-      EXPECT_EQ(p.path_count, q.path_count);
-      EXPECT_EQ(p.paths_below_threshold, q.paths_below_threshold);
-      EXPECT_EQ(p.los_class_fresnel, q.los_class_fresnel);
-      EXPECT_EQ(bits(p.fresnel_clearance), bits(q.fresnel_clearance));
-      EXPECT_EQ(bits(p.vehicle_loss_db), bits(q.vehicle_loss_db));
-    }
-    ASSERT_EQ(x.paths.size(), y.paths.size());
-    for (std::size_t i = 0; i < x.paths.size(); ++i) {
-      const auto &p = x.paths[i], &q = y.paths[i];
-      EXPECT_EQ(bits(p.a.real()), bits(q.a.real()));
-      EXPECT_EQ(bits(p.a.imag()), bits(q.a.imag()));
-      EXPECT_EQ(bits(p.tau_s), bits(q.tau_s));
-      EXPECT_EQ(bits(p.theta_t), bits(q.theta_t));
-      EXPECT_EQ(bits(p.phi_t), bits(q.phi_t));
-      EXPECT_EQ(bits(p.theta_r), bits(q.theta_r));
-      EXPECT_EQ(bits(p.phi_r), bits(q.phi_r));
-      EXPECT_EQ(bits(p.doppler_hz), bits(q.doppler_hz));
-      EXPECT_EQ(p.interaction_count, q.interaction_count);
-    }
-    ASSERT_EQ(x.interactions.size(), y.interactions.size());
-    for (std::size_t i = 0; i < x.interactions.size(); ++i) {
-      const auto &p = x.interactions[i], &q = y.interactions[i];
-      EXPECT_EQ(p.type, q.type);
-      EXPECT_EQ(p.object, q.object);
-      EXPECT_EQ(bits(p.x), bits(q.x));
-      EXPECT_EQ(bits(p.y), bits(q.y));
-      EXPECT_EQ(bits(p.z), bits(q.z));
-    }
-    ASSERT_EQ(x.cfr.size(), y.cfr.size());
-    for (std::size_t i = 0; i < x.cfr.size(); ++i) {
-      EXPECT_EQ(bits(x.cfr[i].real()), bits(y.cfr[i].real()));
-      EXPECT_EQ(bits(x.cfr[i].imag()), bits(y.cfr[i].imag()));
-    }
-  }
-}
-
-}  // namespace
-
-TEST(FrameBlock, RoundTripIsExact) {
-  const fs::path dir = tmp_dir("block");
-  Builder b;
-  auto frames = b.frames();
-  frames.push_back(FrameRecord{});  // an empty frame
-  frames.back().time_s = 0.3;
-  frames[0].nodes[1].x = 389123.456789012345;  // full double precision
-  frames[0].paths[0].doppler_hz = -0.0f;
-  frames[1].links[0].rms_delay_spread_s = std::numeric_limits<float>::quiet_NaN();
-  frames[1].links[1].blocker_count = 65535;
-  frames[1].interactions[0].object = 0xfffffffeu;
-  const fs::path p = dir / "frames-000001.blk";
-  write_frame_block(p, frames);
-  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
-  const std::string bytes = read_bytes(p);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
-  const auto back = read_frame_block(p);
-  expect_same(frames, back);
-  EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));
-  EXPECT_TRUE(std::signbit(back[0].paths[0].doppler_hz));
-
-  // An empty block round-trips too, and rewriting replaces the old block.
-  write_frame_block(p, {});
-  EXPECT_TRUE(read_frame_block(p).empty());
-}
-
-// The streaming writer (one frame in memory) writes the documented layout:
-// magic, the frame count it only knows at commit, and an FNV-1a 64 trailer
-// over every byte before it, checked here with an independent hash. Frames
-// larger than the reader's 1 MiB chunk come back exactly, frame by frame.
-TEST(FrameBlock, StreamedBlockMatchesLayoutAndReadsBackInChunks) {
-  const fs::path dir = tmp_dir("blockstream");
-  Builder b;
-  auto frames = b.frames();
-  // A frame of 60,000 paths (2.2 MB encoded) spans several read chunks.
-  FrameRecord big = frames.back();
-  big.time_s += 1;
-  big.links.resize(1);
-  big.links[0].path_count = 60000;
-  big.paths.assign(60000, frames[0].paths[0]);
-  for (std::size_t i = 0; i < big.paths.size(); ++i) big.paths[i].tau_s = 1e-9 * static_cast<double>(i);
-  big.interactions.clear();
-  for (auto& p : big.paths) p.interaction_count = 0;
-  frames.push_back(big);
-  frames.push_back(frames[0]);
-  frames.back().time_s = big.time_s + 1;
-
-  const fs::path p = dir / "stream.blk";
-  {
-    FrameBlockWriter w(p);
-    for (const auto& f : frames) w.append(f);
-    EXPECT_FALSE(fs::exists(p)) << "nothing at the final path before commit";
-    EXPECT_TRUE(fs::exists(p.string() + ".tmp"));
-    EXPECT_EQ(w.frames(), frames.size());
-    w.commit();
-  }
-  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
-  const std::string bytes = read_bytes(p);
-  ASSERT_GT(bytes.size(), 2u << 20);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
-  auto le64 = [&](std::size_t at) {
-    std::uint64_t v = 0;
-    for (int i = 0; i < 8; ++i) v |= std::uint64_t(static_cast<unsigned char>(bytes[at + i])) << (8 * i);
-    return v;
-  };
-  EXPECT_EQ(le64(8), frames.size());
-  std::uint64_t h = 14695981039346656037ull;
-  for (std::size_t i = 0; i + 8 < bytes.size(); ++i) h = (h ^ static_cast<unsigned char>(bytes[i])) * 1099511628211ull;
-  EXPECT_EQ(le64(bytes.size() - 8), h);
-
-  FrameBlockReader r(p);
-  EXPECT_EQ(r.frames(), frames.size());
-  std::vector<FrameRecord> back;
-  for (FrameRecord f; r.next(f);) back.push_back(f);
-  expect_same(frames, back);
-  EXPECT_NO_THROW(verify_frame_block(p));
-
-  // A writer dropped before commit (a failed frame) leaves the old block as it was.
-  {
-    FrameBlockWriter w(p);
-    w.append(frames[0]);
-  }
-  EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
-  EXPECT_EQ(read_bytes(p), bytes);
-}
-
-TEST(FrameBlock, TruncatedOrCorruptBlocksAreRejected) {
-  const fs::path dir = tmp_dir("blockbad");
-  Builder b;
-  const auto frames = b.frames();
-  const fs::path good = dir / "good.blk";
-  write_frame_block(good, frames);
-  const std::string bytes = read_bytes(good);
-  auto expect_rejected = [&](const fs::path& p, const char* what) {
-    try {
-      read_frame_block(p);
-      ADD_FAILURE() << what << ": block accepted";
-    } catch (const InputError& e) {
-      EXPECT_EQ(e.file(), p.string()) << what;
-      EXPECT_NE(std::string(e.what()).find(p.string()), std::string::npos) << what;
-    }
-  };
-  for (std::size_t cut : {bytes.size() / 2, bytes.size() - 1, std::size_t{12}, std::size_t{0}}) {
-    const fs::path p = dir / ("cut" + std::to_string(cut) + ".blk");
-    write_bytes(p, bytes.substr(0, cut));
-    expect_rejected(p, "truncated");
-  }
-  for (std::size_t at : {std::size_t{3}, std::size_t{9}, bytes.size() / 3, bytes.size() - 2}) {
-    std::string flipped = bytes;
-    flipped[at] = static_cast<char>(flipped[at] ^ 0x10);
-    const fs::path p = dir / ("flip" + std::to_string(at) + ".blk");
-    write_bytes(p, flipped);
-    expect_rejected(p, "flipped byte");
-  }
-  expect_rejected(dir / "missing.blk", "missing");
 }
 
 // ---------------------------------------------------------------------------
