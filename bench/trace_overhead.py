@@ -2,7 +2,9 @@
 """One-shot traces as a user runs them: `raysweep trace` as a whole process
 against the tracing inside it.
 
-Cases (each run --rounds times, alternating, medians reported):
+Cases (each run --rounds times, alternating, medians reported; the first demo
+trace runs once more before them with the scene's cache/ of model tables
+removed, as a user's first trace of a scene):
   demo/60        60 vehicles on the demo city (poses: place_on_lanes seed 1,
                  passenger:truck:bus 8:1:1, the built-in models: exactly the
                  vehicles of bench_tracer's BM_Snapshot/demo/60/3), default
@@ -11,7 +13,8 @@ Cases (each run --rounds times, alternating, medians reported):
                  same rounds.
   ring/60-static 60 antennas 1.5 m above the VaN3Twin ring road's lanes (when
                  ../shared is present), specular + refraction only (no
-                 diffraction, no diffuse); against its own tracing time.
+                 diffraction, no diffuse), JSON and HDF5 output; against its
+                 own tracing time.
 
 For each: the process's wall time, the tracing time it logs (trace_snapshot),
 and the ratios. Writes results.json and results.md under --out.
@@ -22,6 +25,7 @@ import argparse
 import json
 import os
 import re
+import shutil
 import statistics
 import subprocess
 import sys
@@ -100,14 +104,19 @@ def main():
     demo_args = ["--scene", os.path.join(a.out, "demo"), "--poses", os.path.join(a.out, "demo-poses.csv")]
     ring_args = ["--scene", os.path.join(a.out, "ring"), "--nodes", os.path.join(a.out, "ring-nodes.csv"),
                  "--exclude-objects", "car_", "--config", os.path.join(a.out, "gos.toml")]
-    rows = {"demo/60 json": [], "demo/60 h5": [], "ring/60-static json": []}
+    rows = {"demo/60 json, cold cache": [], "demo/60 json": [], "demo/60 h5": [], "ring/60-static json": [],
+            "ring/60-static h5": []}
     steady = []
+    # Cold: the scene's cache/ of model tables (tracer/precompute.hpp) absent, as in a user's first trace.
+    shutil.rmtree(os.path.join(a.out, "demo", "cache"), ignore_errors=True)
+    rows["demo/60 json, cold cache"].append(timed_trace(raysweep, demo_args + ["--out", os.path.join(a.out, "t.json")]))
     for r in range(a.rounds):
         steady.append(steady_snapshot(bench, "demo"))
         rows["demo/60 json"].append(timed_trace(raysweep, demo_args + ["--out", os.path.join(a.out, "t.json")]))
         rows["demo/60 h5"].append(timed_trace(raysweep, demo_args + ["--out", os.path.join(a.out, "t.h5")]))
         if ring:
             rows["ring/60-static json"].append(timed_trace(raysweep, ring_args + ["--out", os.path.join(a.out, "r.json")]))
+            rows["ring/60-static h5"].append(timed_trace(raysweep, ring_args + ["--out", os.path.join(a.out, "r.h5")]))
     med = statistics.median
     result = {"steady_snapshot_s": med(steady), "rounds": a.rounds, "cases": {}}
     lines = ["| case | process s | tracing s | process / tracing | process / steady snapshot |", "|---|---|---|---|---|"]
