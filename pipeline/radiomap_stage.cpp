@@ -20,6 +20,7 @@
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"
 #include "pipeline/preview.hpp"
+#include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/radiomap_vdb.hpp"
 #include "pipeline/render_stage.hpp"
@@ -387,6 +388,7 @@ json run_radiomap_stage(const RadioMapArgs& args, const Settings& all, const std
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
   tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
+  scene.set_precompute_store(scene_precompute_store(args.scene));
   std::vector<InputFile> inputs{{"scene", scene_file.string()}};
   if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.poses.empty()) place_poses(args, scene, inputs);

@@ -21,6 +21,7 @@
 #include "pipeline/city_run.hpp"
 #include "pipeline/fcd.hpp"
 #include "pipeline/preview.hpp"
+#include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/settings/tables.hpp"
 #include "pipeline/staged_output.hpp"
@@ -452,9 +453,12 @@ struct SceneVariant {
 // LOD, built when first asked for.
 class TradeoffScenes {
  public:
-  TradeoffScenes(meshkit::Scene static_scene, std::string vehicles_dir)
-      : static_(std::move(static_scene)), vehicles_dir_(std::move(vehicles_dir)) {
+  // `store`: where the vehicle models' precomputed tables are kept (the scene's cache/).
+  TradeoffScenes(meshkit::Scene static_scene, std::string vehicles_dir,
+                 std::shared_ptr<const tracer::PrecomputeStore> store)
+      : static_(std::move(static_scene)), vehicles_dir_(std::move(vehicles_dir)), store_(std::move(store)) {
     scenes_[0.0].scene = std::make_unique<tracer::TraceScene>(static_);
+    scenes_[0.0].scene->set_precompute_store(store_);
     scenes_[0.0].stats.triangles_before = scenes_[0.0].stats.triangles_after = static_.triangle_count();
   }
 
@@ -474,6 +478,7 @@ class TradeoffScenes {
       const auto t = std::chrono::steady_clock::now();
       const meshkit::Scene simplified = meshkit::simplify_scene(static_, simplify_m, &v.stats);
       v.scene = std::make_unique<tracer::TraceScene>(simplified);
+      v.scene->set_precompute_store(store_);
       spdlog::info("tradeoff: static geometry simplified within {} m: {} -> {} triangles ({} objects changed, {:.2f} s)",
                    simplify_m, v.stats.triangles_before, v.stats.triangles_after, v.stats.objects_simplified,
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count());
@@ -508,6 +513,7 @@ class TradeoffScenes {
  private:
   const meshkit::Scene static_;
   const std::string vehicles_dir_;
+  std::shared_ptr<const tracer::PrecomputeStore> store_;
   std::map<double, SceneVariant> scenes_;
   std::map<int, std::unique_ptr<VehicleLibrary>> libraries_;
 };
@@ -925,7 +931,8 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   for (const auto& s : run.grid) tracer::validate(s.tracer, settings.radio);
 
   spdlog::info("tradeoff: reading {} and {}", in.scene_file.string(), in.fcd);
-  TradeoffScenes scenes(exclude_objects(meshkit::read_glb(in.scene_file.string()), cfg.exclude_objects), in.vehicles_dir);
+  TradeoffScenes scenes(exclude_objects(meshkit::read_glb(in.scene_file.string()), cfg.exclude_objects), in.vehicles_dir,
+                        scene_precompute_store(in.scene_file.parent_path()));
   const VTypeMap vtypes = read_vtype_files(in.vtype_files);
   FcdTypeModels type_models(vtypes, scenes.library(base.lod), in.library_mode(), in.fcd);
   run.snapshots = choose_snapshots(in.fcd, cfg, scenes.static_bounds(), type_models, axes.snapshots);
