@@ -21,6 +21,7 @@
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
+#include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
 #include "pipeline/version.hpp"
@@ -384,20 +385,9 @@ ShardRecord shard_record(const SweepArgs& args, std::uint64_t block_frames, cons
 
 generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettings& settings,
                                          const generators::SweepOptions& options, const std::string& shard) {
-  generators::DatasetHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = id.config;
-  header.inputs = id.prov["inputs"];
-  header.provenance = id.prov;
-  header.seed = 0;
+  const tracer::OfdmGrid* grid = options.cfr ? &*options.cfr : nullptr;
+  generators::DatasetHeader header = channel_dataset_header(id.config, id.prov, settings.radio, grid);
   header.shard = shard;
-  header.carrier_hz = settings.radio.frequency_hz;
-  header.bandwidth_hz = settings.radio.bandwidth_hz;
-  if (options.cfr) {
-    header.cfr_subcarriers = static_cast<std::uint32_t>(options.cfr->n_subcarriers);
-    header.cfr_subcarrier_spacing_hz = options.cfr->subcarrier_spacing_hz;
-  }
   return header;
 }
 

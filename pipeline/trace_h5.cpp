@@ -2,6 +2,7 @@
 
 #include "generators/frame_record.hpp"
 #include "pipeline/staged_output.hpp"
+#include "pipeline/version.hpp"
 
 namespace raysweep::pipeline {
 
@@ -67,6 +68,23 @@ generators::FrameRecord frame_record(const tracer::Snapshot& snap, const Snapsho
 }
 
 }  // namespace
+
+generators::DatasetHeader channel_dataset_header(const nlohmann::json& config, const nlohmann::json& provenance,
+                                                 const tracer::RadioConfig& radio, const tracer::OfdmGrid* grid) {
+  generators::DatasetHeader header;
+  header.raysweep_version = kVersion;
+  header.git_hash = kGitHash;
+  header.config = config;
+  header.inputs = provenance["inputs"];
+  header.provenance = provenance;
+  header.carrier_hz = radio.frequency_hz;
+  header.bandwidth_hz = radio.bandwidth_hz;
+  if (grid) {
+    header.cfr_subcarriers = static_cast<std::uint32_t>(grid->n_subcarriers);
+    header.cfr_subcarrier_spacing_hz = grid->subcarrier_spacing_hz;
+  }
+  return header;
+}
 
 void write_trace_dataset(const std::string& path, const generators::DatasetHeader& header,
                          const tracer::Snapshot& snap, const SnapshotNodes& in, const tracer::OfdmGrid* grid) {

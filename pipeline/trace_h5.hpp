@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "generators/dataset_writer.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/channel.hpp"
@@ -23,6 +25,12 @@ struct SnapshotNodes {
   std::vector<meshkit::VehicleDims> dims;  // per pose
   std::vector<std::string> static_objects;
 };
+
+// The header every writer of a channel dataset gives it: version, commit,
+// config and provenance (its inputs too), the radio's carrier and bandwidth,
+// and the frequency-response grid when there is one.
+generators::DatasetHeader channel_dataset_header(const nlohmann::json& config, const nlohmann::json& provenance,
+                                                 const tracer::RadioConfig& radio, const tracer::OfdmGrid* grid);
 
 // Writes the dataset through a temporary sibling; header.cfr_* must match `grid`.
 void write_trace_dataset(const std::string& path, const generators::DatasetHeader& header,

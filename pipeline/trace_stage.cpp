@@ -11,7 +11,6 @@
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
-#include "pipeline/version.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
@@ -108,18 +107,7 @@ void write_json_output(const TraceArgs& args, const SnapshotInputs& in, const tr
 void write_h5_output(const TraceArgs& args, const SnapshotInputs& in, const tracer::Snapshot& snap,
                      const tracer::OfdmGrid* grid, const TraceSettings& settings, const json& config,
                      const json& prov) {
-  generators::DatasetHeader header;
-  header.raysweep_version = kVersion;
-  header.git_hash = kGitHash;
-  header.config = config;
-  header.inputs = prov["inputs"];
-  header.provenance = prov;
-  header.carrier_hz = settings.radio.frequency_hz;
-  header.bandwidth_hz = settings.radio.bandwidth_hz;
-  if (grid) {
-    header.cfr_subcarriers = static_cast<std::uint32_t>(grid->n_subcarriers);
-    header.cfr_subcarrier_spacing_hz = grid->subcarrier_spacing_hz;
-  }
+  const auto header = channel_dataset_header(config, prov, settings.radio, grid);
   SnapshotNodes nodes;
   nodes.nodes = &in.nodes;
   nodes.poses = &in.poses;

@@ -34,7 +34,7 @@ T get(const std::string& in, std::size_t at) {
 
 ContentKey& ContentKey::add(const void* data, std::size_t bytes) {
   a_ = fnv(data, bytes, a_);
-  // The second stream sees the bytes with their position mixed in, so the two are independent.
+  // The second stream starts each call from a seed mixed with the call's length, so the two differ.
   b_ = fnv(data, bytes, b_ ^ (bytes * 0x9e3779b97f4a7c15ull));
   return *this;
 }
