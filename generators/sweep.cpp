@@ -69,8 +69,11 @@ Sweep::Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, cons
              const SweepOptions& options, std::vector<SweepRsu> rsus)
     : scene_(scene), tracer_(tracer), radio_(radio), options_(options), rsus_(std::move(rsus)) {
   if (options_.block_frames == 0) throw std::invalid_argument("sweep: block_frames must be at least 1");
-  if (!(options_.d0_m >= 0) || !(options_.coherence_time_s >= 0) || !(options_.cache_margin_m >= 0))
-    throw std::invalid_argument("sweep: d0, coherence time and cache margin must be >= 0");
+  if (!(options_.d0_m >= 0) || !(options_.coherence_time_s >= 0) || !(options_.cache_margin_m >= 0) ||
+      !(options_.coherence_margin_m >= 0) || !(options_.coherence_volatile_share >= 0))
+    throw std::invalid_argument(
+        "sweep: d0, coherence time, cache margin, coherence margin and volatile share must be >= 0");
+  if (options_.coherence_frames == 0) throw std::invalid_argument("sweep: coherence_frames must be at least 1");
   std::sort(rsus_.begin(), rsus_.end(), [](const SweepRsu& a, const SweepRsu& b) { return a.node < b.node; });
 }
 
@@ -101,6 +104,7 @@ void sort_and_check(std::vector<SweepVehicle>& vehicles, const std::vector<Sweep
 // What changed since the last frame.
 struct Sweep::Motion {
   std::vector<Sphere> moved;           // every moved vehicle's old and new sphere, every departed one's last
+  std::vector<Sphere> arrived;         // vehicles new in this frame
   std::vector<std::uint32_t> updated;  // sorted node ids
   bool scene_changed = false, departed = false;
 };
@@ -129,6 +133,7 @@ Sweep::Motion Sweep::place_vehicles(const std::vector<SweepVehicle>& vehicles) {
     }
     if (update) {
       if (it != placed_.end()) motion.moved.push_back(bounding_sphere(it->second.v));
+      else motion.arrived.push_back(bounding_sphere(v));
       motion.moved.push_back(bounding_sphere(v));
       motion.updated.push_back(v.node);
       next[v.node] = Placed{v};
@@ -263,6 +268,79 @@ Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antenna
   return c;
 }
 
+// The pairs of `todo` that can be re-solved from their recall, taken out of
+// `todo` (which keeps the rest in pair order): the rule on the recall's
+// paths (sweep.hpp), searched less than coherence_frames frames ago, both
+// ends within coherence_margin_m of where they were then, and no vehicle
+// new to the sweep in the pair's strong ellipsoid.
+std::vector<Sweep::NodePair> Sweep::coherent_pairs(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                                                   std::vector<NodePair>& todo) const {
+  if (!options_.coherence) return {};
+  std::vector<NodePair> coherent, search;
+  for (const auto& pair : todo) {
+    auto it = cache_.find(pair_key(ant.node_of[pair.first], ant.node_of[pair.second]));
+    const tracer::PairRecall* rc = it == cache_.end() ? nullptr : it->second.recall.get();
+    bool ok = rc && rc->complete && rc->volatile_share <= options_.coherence_volatile_share &&
+              (!options_.coherence_clear_zone_only || rc->fresnel_class == tracer::LosClass::LOS) &&
+              rc->direct_share >= options_.coherence_direct_share &&
+              frame - it->second.searched_frame < options_.coherence_frames &&
+              norm(ant.nodes[pair.first].position - rc->a.position) <= options_.coherence_margin_m &&
+              norm(ant.nodes[pair.second].position - rc->b.position) <= options_.coherence_margin_m;
+    // A vehicle new to the sweep inside the pair's strong ellipsoid may
+    // bring a path as strong as its best.
+    for (std::size_t s = 0; ok && s < motion.arrived.size(); ++s) {
+      const Sphere& m = motion.arrived[s];
+      const CachedLink& c = it->second;
+      ok = norm(m.c - c.a) + norm(m.c - c.b) - 2 * m.r > c.reach;
+    }
+    (ok ? coherent : search).push_back(pair);
+  }
+  todo = std::move(search);
+  return coherent;
+}
+
+// The pairs of `todo`: re-solved where their recall allows and still holds,
+// searched otherwise (searched[p]). The result and `todo` in pair order.
+tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                                   std::vector<NodePair>& todo, std::vector<unsigned char>& searched) {
+  const std::vector<NodePair> coherent = coherent_pairs(frame, ant, motion, todo);
+  tracer::Snapshot resolved;
+  std::vector<unsigned char> intact;
+  if (!coherent.empty()) {
+    std::vector<tracer::PairRecall*> recalls;
+    for (const auto& [i, j] : coherent)
+      recalls.push_back(cache_.at(pair_key(ant.node_of[i], ant.node_of[j])).recall.get());
+    const auto t0 = std::chrono::steady_clock::now();
+    resolved = tracer::resolve_pairs(scene_, ant.nodes, coherent, recalls, tracer_, radio_,
+                                     options_.coherence_volatile_share, intact);
+    stats_.resolve_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  }
+  std::vector<NodePair> search = todo;
+  for (std::size_t p = 0; p < coherent.size(); ++p)
+    if (!intact[p]) search.push_back(coherent[p]);
+  stats_.recall_broken += search.size() - todo.size();
+  std::sort(search.begin(), search.end());
+  tracer::Snapshot traced = tracer::trace_pairs(scene_, ant.nodes, search, tracer_, radio_);
+  stats_.searched_links += search.size();
+
+  // Merge the two in pair order.
+  tracer::Snapshot out;
+  out.stats = traced.stats;
+  out.stats.rays += resolved.stats.rays;
+  todo.clear();
+  searched.clear();
+  std::size_t x = 0, y = 0;
+  while (true) {
+    while (x < coherent.size() && !intact[x]) ++x;
+    const bool from_coherent = x < coherent.size() && (y >= search.size() || coherent[x] < search[y]);
+    if (!from_coherent && y >= search.size()) break;
+    todo.push_back(from_coherent ? coherent[x] : search[y]);
+    out.pairs.push_back(std::move(from_coherent ? resolved.pairs[x++] : traced.pairs[y++]));
+    searched.push_back(!from_coherent);
+  }
+  return out;
+}
+
 // Every node's state (RSUs and `vehicles`, sorted), in node order.
 void Sweep::append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const {
   std::size_t r = 0;
@@ -341,12 +419,21 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
     if (needs_trace(ant.node_of[i], ant.node_of[j], motion)) todo.emplace_back(i, j);
 
   const auto t0 = std::chrono::steady_clock::now();
-  const tracer::Snapshot snap = tracer::trace_pairs(scene_, ant.nodes, todo, tracer_, radio_);
+  std::vector<unsigned char> searched;
+  const tracer::Snapshot snap = trace_todo(frame_index, ant, motion, todo, searched);
   stats_.trace_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats_.rays += snap.stats.rays;
   for (std::size_t p = 0; p < todo.size(); ++p) {
     CachedLink c = cache_link(snap.pairs[p], ant, todo[p]);
     const std::uint64_t key = pair_key(c.link.tx, c.link.rx);
+    if (options_.coherence && searched[p]) {
+      c.recall = std::make_shared<tracer::PairRecall>(tracer::make_recall(scene_, ant.nodes, snap.pairs[p]));
+      c.searched_frame = frame_index;
+    } else if (options_.coherence) {
+      const CachedLink& before = cache_.at(key);
+      c.recall = before.recall;
+      c.searched_frame = before.searched_frame;
+    }
     cache_[key] = std::move(c);
   }
 

@@ -19,14 +19,30 @@
 //   outside the strong ellipsoid, which is longer, hence weaker in spreading
 //   loss, than the strongest path it has (measured by `raysweep` benchmarks).
 //
-// The cache and the update rule restart at every block of `block_frames`
-// frames (every vehicle placed afresh, every pair traced), so each block
-// depends only on its own frames: a resumed run commits the same blocks as
-// an uninterrupted one.
+// Frame-to-frame coherence (`coherence`, off by default): a pair that must be
+// computed again is not searched from scratch but re-solved from the paths
+// its last search found (tracer/coherence.hpp: the same face sequences and
+// edges solved exactly at the new positions, the labels and the direct path
+// afresh). A pair is re-solved only while the paths that traffic makes and
+// unmakes from frame to frame (reflections on vehicles, diffuse records)
+// carry a small share of its power (`coherence_volatile_share`): a LoS
+// pair, a pair dominated by the city's walls. It is searched again when its
+// recall no longer holds (a label changed, recalled paths carrying more than
+// that share vanished, it came into or went out of range), when
+// `coherence_frames` frames have passed since its last search,
+// when either end has moved more than `coherence_margin_m` since then, and
+// when a vehicle new to the sweep arrives inside its strong ellipsoid.
+// What that can miss, and for how long, is in docs/tracer.md.
+//
+// The cache, the update rule and the coherence restart at every block of
+// `block_frames` frames (every vehicle placed afresh, every pair traced), so
+// each block depends only on its own frames: a resumed run or a shard
+// commits the same blocks as an uninterrupted one.
 #pragma once
 
 #include <cstdint>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -34,6 +50,7 @@
 
 #include "generators/dataset.hpp"
 #include "tracer/channel.hpp"
+#include "tracer/coherence.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::generators {
@@ -48,6 +65,19 @@ struct SweepOptions {
   CacheMode cache = CacheMode::per_pair;
   double cache_margin_m = 0.5;
   std::uint32_t block_frames = 50;
+  bool coherence = false;  // off by default: see docs/tracer.md (it does not pay yet)
+  std::uint32_t coherence_frames = 10;  // a pair is searched at least this often (frames)
+  double coherence_margin_m = 8;        // or once an end moved this far since its last search
+  // A pair is re-solved only while the paths a search may find anew as
+  // traffic moves (on vehicles, diffuse) carried at most this share of its
+  // power at its last search, and while recalled paths that vanished (off
+  // their faces or edges) carry at most this share.
+  double coherence_volatile_share = 0.05;
+  // And only while its direct path carried at least this share, and (with
+  // coherence_clear_zone_only) no obstacle entered its first Fresnel zone:
+  // a strong direct path outweighs the paths that appear between searches.
+  double coherence_direct_share = 0.5;
+  bool coherence_clear_zone_only = true;
   std::optional<tracer::OfdmGrid> cfr;  // store each link's frequency response
 };
 
@@ -71,11 +101,14 @@ struct SweepStats {
   std::uint64_t frames = 0;
   std::uint64_t links = 0;           // pair-frames written
   std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
+  std::uint64_t searched_links = 0;  // of those, searched from scratch (the rest re-solved coherently)
+  std::uint64_t recall_broken = 0;   // re-solves whose recall no longer held (then searched)
   std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
   std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
   std::uint64_t paths = 0;
   std::uint64_t rays = 0;
   double trace_seconds = 0;
+  double resolve_seconds = 0;  // of which the coherent re-solves
   double hit_ratio() const { return links ? 1.0 - static_cast<double>(traced_links) / links : 0.0; }
 };
 
@@ -109,6 +142,9 @@ class Sweep {
     std::vector<tracer::Vec3> points;         // each path's polyline a, interactions..., b
     std::vector<std::uint32_t> path_points;   // polyline sizes
     tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point
+    // Coherence: what the pair's last search found, and when.
+    std::shared_ptr<tracer::PairRecall> recall;
+    std::uint64_t searched_frame = 0;
   };
   // step()'s phases (the two structs are defined in sweep.cpp).
   struct Motion;
@@ -120,6 +156,10 @@ class Sweep {
   bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
   bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
   CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
+  std::vector<NodePair> coherent_pairs(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                                       std::vector<NodePair>& todo) const;
+  tracer::Snapshot trace_todo(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                              std::vector<NodePair>& todo, std::vector<unsigned char>& searched);
   void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
   void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
                     const std::vector<std::uint32_t>& node_of, FrameRecord& frame);

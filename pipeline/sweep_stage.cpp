@@ -259,10 +259,13 @@ class BlockStore {
     const json st = {{"frames", s.frames - before_.frames},
                      {"links", s.links - before_.links},
                      {"traced_links", s.traced_links - before_.traced_links},
+                     {"searched_links", s.searched_links - before_.searched_links},
+                     {"recall_broken", s.recall_broken - before_.recall_broken},
                      {"vehicle_updates", s.vehicle_updates - before_.vehicle_updates},
                      {"updates_deferred", s.updates_deferred - before_.updates_deferred},
                      {"rays", s.rays - before_.rays},
-                     {"trace_seconds", s.trace_seconds - before_.trace_seconds}};
+                     {"trace_seconds", s.trace_seconds - before_.trace_seconds},
+                     {"resolve_seconds", s.resolve_seconds - before_.resolve_seconds}};
     before_ = s;
     write_file_atomic(stats(b), st.dump() + "\n");
     block_->commit();
@@ -395,8 +398,10 @@ generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettin
 json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& header, std::uint64_t last_block,
                       const BlockStore& store, const NodeTable& nodes, const generators::Sweep& sweep) {
   StagedFile staged{fs::path(args.out)};
-  json totals = {{"frames", 0},       {"links", 0},           {"traced_links", 0}, {"vehicle_updates", 0},
-                 {"updates_deferred", 0}, {"rays", 0}, {"trace_seconds", 0.0}};
+  json totals = {{"frames", 0},         {"links", 0},           {"traced_links", 0},
+                 {"searched_links", 0},  {"recall_broken", 0},   {"vehicle_updates", 0},
+                 {"updates_deferred", 0}, {"rays", 0},           {"trace_seconds", 0.0},
+                 {"resolve_seconds", 0.0}};
   {
     generators::DatasetWriter writer(staged.path(), header);
     for (std::uint64_t b = 0; b <= last_block; ++b) {
@@ -435,10 +440,12 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
   summary["wall_seconds"] = wall;
   summary["bytes"] = bytes;
   summary["bytes_per_link"] = links ? static_cast<double>(bytes) / links : 0.0;
-  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s "
-               "({:.1f} s tracing); {} ({:.0f} bytes per pair-frame)",
+  summary["coherence"] = options.coherence;
+  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, {} of them searched, cache hit "
+               "{:.1f}%) in {:.1f} s ({:.1f} s tracing, {:.1f} s of it re-solving); {} ({:.0f} bytes per pair-frame)",
                totals["frames"].get<std::uint64_t>(), p.blocks_resumed, links, traced,
-               100 * summary["cache_hit_ratio"].get<double>(), wall, totals["trace_seconds"].get<double>(), args.out,
+               totals["searched_links"].get<std::uint64_t>(), 100 * summary["cache_hit_ratio"].get<double>(), wall,
+               totals["trace_seconds"].get<double>(), totals["resolve_seconds"].get<double>(), args.out,
                summary["bytes_per_link"].get<double>());
   return summary;
 }

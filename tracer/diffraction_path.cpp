@@ -28,7 +28,9 @@ bool leg_clear(const TraceScene& scene, const Edge& edge, const Vec3& a, const V
 
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
                                              const Node& to, const Edge& edge, std::uint64_t* rays,
-                                             const FaceRef* before, const FaceRef* after, double min_power) {
+                                             const FaceRef* before, const FaceRef* after, double min_power,
+                                             bool* blocked) {
+  if (blocked) *blocked = false;
   // A reflection on a plane before (after) the edge is unfolded: the edge
   // sees the source's (receiver's) image, along straight legs of the same
   // length, so Keller's point, the UTD angles and the spreading are those of
@@ -98,7 +100,10 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   };
   // With a power floor, a bound on the field comes first (below): it does
   // not depend on the legs, and most weak candidates then need no ray.
-  if (!(min_power > 0) && !legs_clear()) return std::nullopt;
+  if (!(min_power > 0) && !legs_clear()) {
+    if (blocked) *blocked = true;
+    return std::nullopt;
+  }
   // Both ends (images) outside the wedge (the callers' edge lists hold
   // that already; here the angles are needed for the coefficients).
   const double phi_i = edge_angle(edge, vt), phi_d = edge_angle(edge, vr);
@@ -123,7 +128,11 @@ std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Elec
   if (min_power > 0) {
     const double bound = (lambda / (4 * kPi)) * utd_wedge_bound(edge.n, phi_i, phi_d, beta0, L, k) * norm(e_tx) *
                          norm(f_rx) / std::sqrt(sp * sd * length);
-    if (bound * bound < min_power || !legs_clear()) return std::nullopt;
+    if (bound * bound < min_power) return std::nullopt;
+    if (!legs_clear()) {
+      if (blocked) *blocked = true;
+      return std::nullopt;
+    }
   }
   // Rough faces reflect sqrt(1 - S^2) of the smooth field, in the UTD terms
   // too, so the total stays continuous across reflection boundaries.

@@ -114,8 +114,9 @@ std::optional<Path> path_field(const TraceScene& scene, const Electromagnetics& 
 
 std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
                                const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
-                               std::uint64_t* rays, bool through_vehicles) {
+                               std::uint64_t* rays, bool through_vehicles, int* blocked) {
   if (over_cap) *over_cap = false;
+  if (blocked) *blocked = 0;
   const std::size_t k = faces.size();
   if (k > static_cast<std::size_t>(kMaxDepth)) return std::nullopt;
   std::array<Plane, kMaxDepth> planes;
@@ -197,7 +198,10 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
       }
       if (h.t >= len - end_tol) continue;  // at the end point, not on the way
       if (passed(h.face)) continue;
-      if (!config.refraction || em.opaque(scene.material(h.face))) return std::nullopt;
+      if (!config.refraction || em.opaque(scene.material(h.face))) {
+        if (blocked) *blocked = scene.is_vehicle(h.face) ? 2 : 1;
+        return std::nullopt;
+      }
       events.push_back(Event{false, h.face, a + h.t * dir, dir});
       ++transmissions;
     }

@@ -145,8 +145,11 @@ class Diffraction final : public Mechanism {
       else {
         ++res.candidates;
         if (auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[pair.i], plan.nodes[pair.j],
-                                                 plan.scene.edges()[ei[x]], pair.rays))
+                                                 plan.scene.edges()[ei[x]], pair.rays)) {
+          path->origin.kind = PathOrigin::Kind::diffraction;
+          path->origin.edge = ei[x];
           res.paths.push_back(std::move(*path));
+        }
         ++x;
         ++y;
       }
@@ -168,8 +171,13 @@ class Diffraction final : public Mechanism {
         const FaceRef face{0, re.face};
         if (auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[i], plan.nodes[j],
                                                  plan.scene.edges()[re.edge], pair.rays, end == 0 ? &face : nullptr,
-                                                 end == 0 ? nullptr : &face))
+                                                 end == 0 ? nullptr : &face)) {
+          path->origin.kind = PathOrigin::Kind::diffraction;
+          path->origin.edge = re.edge;
+          path->origin.faces = {face};
+          path->origin.reflected = end == 0 ? -1 : 1;
           res.paths.push_back(std::move(*path));
+        }
       }
     }
   }
@@ -214,6 +222,7 @@ class Diffraction final : public Mechanism {
         if (auto path = compute_diffraction_path(plan.scene, plan.em, ni, nj, vehicle_edges_[k], pair.rays, nullptr,
                                                  nullptr, floor / (weight * weight))) {
           path->a *= weight;
+          path->origin.kind = PathOrigin::Kind::vehicle_edge;
           res.paths.push_back(std::move(*path));
         }
       }

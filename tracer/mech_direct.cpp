@@ -17,8 +17,10 @@ class Direct final : public Mechanism {
     const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
     ++res.candidates;
     bool over = false;
-    if (auto path = compute_path(plan.scene, plan.em, plan.cfg, a, b, {}, &over, pair.rays))
+    if (auto path = compute_path(plan.scene, plan.em, plan.cfg, a, b, {}, &over, pair.rays)) {
+      path->origin.kind = PathOrigin::Kind::direct;
       res.paths.push_back(std::move(*path));
+    }
     else if (over)
       ++res.dropped_transmission_cap;
     if (plan.cfg.vehicle_diffraction && res.los_class != LosClass::NLOS &&
@@ -43,6 +45,7 @@ class Direct final : public Mechanism {
       res.paths.front().a *= scale;
     } else if (auto direct = exact_path(plan.scene, plan.em, plan.cfg, a, b, {}, nullptr, pair.rays, true)) {
       direct->a *= scale;
+      direct->origin.kind = PathOrigin::Kind::direct;
       if (!have) res.paths.insert(res.paths.begin(), std::move(*direct));
       else if (std::norm(direct->a) > std::norm(res.paths.front().a)) res.paths.front() = std::move(*direct);
     }

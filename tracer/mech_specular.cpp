@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 
 #include "tracer/exact_path.hpp"
 #include "tracer/mechanism.hpp"
@@ -106,6 +107,60 @@ void beam_search(const SnapshotPlan& plan, ShootPass& pass, std::vector<Sequence
   stats.time.image_search += stats.time.beams;
 }
 
+// Vehicles as knife edges on a reflected path too: traced through the
+// vehicles on its way, attenuated by the legs' multiple knife edge in the
+// unfolded path's first zone (continuous as a car enters a leg).
+void add_knife_edges(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
+                     Path& path) {
+  const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+  std::vector<Vec3> points{a.position};
+  std::vector<int> host{-1};
+  std::size_t q = 0;
+  for (const auto& in : path.interactions)
+    if (in.type == InteractionType::specular) {
+      points.push_back(in.point);
+      host.push_back(faces[q].instance == 0 ? -1 : static_cast<int>(faces[q].instance) - 1);
+      ++q;
+    }
+  points.push_back(b.position);
+  host.push_back(-1);
+  const auto ke = plan.obstacles.path_knife_edges(points, host, plan.lambda, a.vehicle, b.vehicle);
+  if (!(ke.loss_db > 0)) return;
+  path.a *= std::pow(10.0, -ke.loss_db / 20);
+  // A leg that crosses a vehicle may also pass through its windows: the
+  // stronger of the two, as for the direct path.
+  if (ke.v_main > 0)
+    if (auto glass = exact_path(plan.scene, plan.em, plan.cfg, a, b, faces, nullptr, pair.rays, false))
+      if (std::norm(glass->a) > std::norm(path.a)) path = std::move(*glass);
+}
+
+}  // namespace
+
+bool sequence_path(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
+                   PairResult& res, int* blocked) {
+  const auto& cfg = plan.cfg;
+  const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+  bool over = false;
+  std::optional<Path> path;
+  if (!(cfg.vehicle_diffraction && cfg.vehicle_diffraction_reflected) || faces.empty()) {
+    path = exact_path(plan.scene, plan.em, cfg, a, b, faces, &over, pair.rays, false, blocked);
+  } else {
+    path = exact_path(plan.scene, plan.em, cfg, a, b, faces, &over, pair.rays, true, blocked);
+    if (path) add_knife_edges(plan, pair, faces, *path);
+  }
+  if (!path) {
+    if (over) ++res.dropped_transmission_cap;
+    if (over && blocked) *blocked = kOverCap;
+    return false;
+  }
+  path->origin.kind = PathOrigin::Kind::sequence;
+  path->origin.faces = faces;
+  res.paths.push_back(std::move(*path));
+  return true;
+}
+
+namespace {
+
 class Specular final : public Mechanism {
  public:
   void prepare(SnapshotPlan& plan, SnapshotStats& stats) override {
@@ -135,61 +190,16 @@ class Specular final : public Mechanism {
 
   void add_paths(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const override {
     const auto& candidates = candidates_[pair.p];
-    for (const auto& faces : candidates) add(plan, pair, faces, res);
+    int blocked = 0;
+    for (const auto& faces : candidates)
+      if (!sequence_path(plan, pair, faces, res, &blocked) && blocked == kVehicleBlocked)
+        res.near_misses.push_back(faces);
     res.candidates += static_cast<std::uint32_t>(candidates.size());
   }
 
   double SnapshotStats::Timing::*pair_time() const override { return &SnapshotStats::Timing::exact; }
 
  private:
-  static void add(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
-                  PairResult& res) {
-    const auto& cfg = plan.cfg;
-    const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
-    bool over = false;
-    if (!(cfg.vehicle_diffraction && cfg.vehicle_diffraction_reflected) || faces.empty()) {
-      if (auto path = compute_path(plan.scene, plan.em, cfg, a, b, faces, &over, pair.rays))
-        res.paths.push_back(std::move(*path));
-      else if (over)
-        ++res.dropped_transmission_cap;
-      return;
-    }
-    auto path = exact_path(plan.scene, plan.em, cfg, a, b, faces, &over, pair.rays, true);
-    if (!path) {
-      if (over) ++res.dropped_transmission_cap;
-      return;
-    }
-    add_knife_edges(plan, pair, faces, *path);
-    res.paths.push_back(std::move(*path));
-  }
-
-  // Vehicles as knife edges on a reflected path too: traced through the
-  // vehicles on its way, attenuated by the legs' multiple knife edge in the
-  // unfolded path's first zone (continuous as a car enters a leg).
-  static void add_knife_edges(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
-                              Path& path) {
-    const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
-    std::vector<Vec3> points{a.position};
-    std::vector<int> host{-1};
-    std::size_t q = 0;
-    for (const auto& in : path.interactions)
-      if (in.type == InteractionType::specular) {
-        points.push_back(in.point);
-        host.push_back(faces[q].instance == 0 ? -1 : static_cast<int>(faces[q].instance) - 1);
-        ++q;
-      }
-    points.push_back(b.position);
-    host.push_back(-1);
-    const auto ke = plan.obstacles.path_knife_edges(points, host, plan.lambda, a.vehicle, b.vehicle);
-    if (!(ke.loss_db > 0)) return;
-    path.a *= std::pow(10.0, -ke.loss_db / 20);
-    // A leg that crosses a vehicle may also pass through its windows: the
-    // stronger of the two, as for the direct path.
-    if (ke.v_main > 0)
-      if (auto glass = exact_path(plan.scene, plan.em, plan.cfg, a, b, faces, nullptr, pair.rays, false))
-        if (std::norm(glass->a) > std::norm(path.a)) path = std::move(*glass);
-  }
-
   std::vector<Sequences> candidates_;  // per pair, sorted
 };
 

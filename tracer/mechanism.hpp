@@ -41,6 +41,21 @@ using Mechanisms = std::vector<std::unique_ptr<Mechanism>>;
 // diffuse. Each factory returns nullptr when its mechanism is off.
 Mechanisms make_mechanisms(const TracerConfig& cfg);
 
+// The per-pair steps that trace_pairs and the coherent re-solve
+// (tracer/coherence.hpp) share. label_pair: the direct line's LoS class,
+// its Fresnel zone and label (into pair.zone and res). sequence_path: the
+// exact path through `faces` (with the vehicles as knife edges on its legs
+// when configured) appended to res.paths; false when it does not exist
+// (`blocked`: why, when it exists geometrically: a static face or a vehicle
+// blocks it (exact_path.hpp), or it crosses too many slabs; else 0).
+// assemble_paths: sorted by delay, duplicates and paths below the threshold
+// dropped, statistics.
+void label_pair(const SnapshotPlan& plan, PairTrace& pair, PairResult& res);
+enum : int { kStaticBlocked = 1, kVehicleBlocked = 2, kOverCap = 3 };
+bool sequence_path(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
+                   PairResult& res, int* blocked = nullptr);
+void assemble_paths(const TracerConfig& cfg, PairResult& res);
+
 std::unique_ptr<Mechanism> make_direct(const TracerConfig& cfg);
 std::unique_ptr<Mechanism> make_specular(const TracerConfig& cfg);
 std::unique_ptr<Mechanism> make_diffraction(const TracerConfig& cfg);

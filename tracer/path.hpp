@@ -3,6 +3,7 @@
 // (TraceScene::object_names(), TraceScene::material_names()).
 #pragma once
 
+#include <compare>
 #include <complex>
 #include <cstdint>
 #include <string>
@@ -26,6 +27,26 @@ struct Interaction {
   Vec3 point;              // where it happens (scene frame, metres)
 };
 
+// A face of the traced scene: instance 0 is the static scene, instance v + 1
+// the current frame's vehicle v.
+struct FaceRef {
+  std::uint32_t instance = 0;
+  std::uint32_t face = 0;
+  auto operator<=>(const FaceRef&) const = default;
+};
+
+// What produced a path, so that a later frame can solve the same path again
+// at new positions (tracer/coherence.hpp) without searching for it.
+struct PathOrigin {
+  enum class Kind : std::uint8_t { unknown, direct, sequence, diffraction, vehicle_edge, diffuse };
+  Kind kind = Kind::unknown;
+  // sequence: the faces from tx; diffraction: the face reflected on before
+  // (reflected < 0) or after (reflected > 0) the edge, if any.
+  std::vector<FaceRef> faces;
+  std::uint32_t edge = 0;  // diffraction: index into TraceScene::edges()
+  std::int8_t reflected = 0;
+};
+
 struct Path {
   std::complex<double> a;  // baseband gain at the carrier, incl. exp(-j 2 pi f tau)
   double tau_s = 0;        // delay
@@ -33,6 +54,7 @@ struct Path {
   double theta_r = 0, phi_r = 0;  // arrival direction, pointing from rx to where the wave comes from
   double doppler_hz = 0;
   std::vector<Interaction> interactions;  // in order from tx to rx
+  PathOrigin origin;
 };
 
 // Aggregates over a set of paths (all in linear units / seconds).

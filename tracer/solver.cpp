@@ -80,9 +80,11 @@ std::vector<Path> without_duplicates(std::vector<Path>& paths) {
   return unique;
 }
 
+}  // namespace
+
 // The pair's paths sorted by delay, duplicates dropped, and (model no more
 // than matters) those far below its strongest.
-void assemble(const TracerConfig& cfg, PairResult& res) {
+void assemble_paths(const TracerConfig& cfg, PairResult& res) {
   std::vector<Path> unique = without_duplicates(res.paths);
   if (cfg.path_threshold_db > 0 && !unique.empty()) {
     double peak = 0;
@@ -97,25 +99,31 @@ void assemble(const TracerConfig& cfg, PairResult& res) {
   res.stats = path_stats(res.paths);
 }
 
+void label_pair(const SnapshotPlan& plan, PairTrace& pair, PairResult& res) {
+  const auto& nodes = plan.nodes;
+  res.tx = pair.i;
+  res.rx = pair.j;
+  const Vec3 a = nodes[pair.i].position, b = nodes[pair.j].position;
+  res.los_class = classify_los(plan.scene, a, b, res.blockers, pair.rays);
+  pair.zone = plan.obstacles.between(a, b, plan.lambda, nodes[pair.i].vehicle, nodes[pair.j].vehicle);
+  res.fresnel_class = fresnel_class(res.los_class, pair.zone);
+  res.fresnel_clearance = pair.zone.clearance;
+}
+
+namespace {
+
 // One pair: its labels, then every mechanism's paths, assembled. `tm`
 // collects the thread's time per step.
 void trace_pair(const SnapshotPlan& plan, const Mechanisms& mechanisms, std::size_t p, PairResult& res,
                 std::uint64_t& rays, SnapshotStats::Timing& tm) {
-  const auto& nodes = plan.nodes;
   PairTrace pair{p, plan.pairs[p].first, plan.pairs[p].second, {}, &rays};
-  res.tx = pair.i;
-  res.rx = pair.j;
   auto t_step = Clock::now();
   auto lap = [&t_step](double& into) {
     const auto now = Clock::now();
     into += std::chrono::duration<double>(now - t_step).count();
     t_step = now;
   };
-  const Vec3 a = nodes[pair.i].position, b = nodes[pair.j].position;
-  res.los_class = classify_los(plan.scene, a, b, res.blockers, &rays);
-  pair.zone = plan.obstacles.between(a, b, plan.lambda, nodes[pair.i].vehicle, nodes[pair.j].vehicle);
-  res.fresnel_class = fresnel_class(res.los_class, pair.zone);
-  res.fresnel_clearance = pair.zone.clearance;
+  label_pair(plan, pair, res);
   lap(tm.los);
   if (!plan.in_range[p]) {
     res.out_of_range = true;
@@ -126,7 +134,7 @@ void trace_pair(const SnapshotPlan& plan, const Mechanisms& mechanisms, std::siz
     m->add_paths(plan, pair, res);
     lap(tm.*(m->pair_time()));
   }
-  assemble(plan.cfg, res);
+  assemble_paths(plan.cfg, res);
   lap(tm.assemble);
 }
 

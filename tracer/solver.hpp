@@ -53,6 +53,9 @@ struct PairResult {
   // to the direct path (TracerConfig::vehicle_diffraction); 0 when none.
   double vehicle_loss_db = 0;
   std::vector<Path> paths;              // sorted by delay
+  // Candidate face sequences that only a vehicle blocks (their recall lets
+  // a coherent sweep see the path return: tracer/coherence.hpp).
+  std::vector<std::vector<FaceRef>> near_misses;
   PathStats stats;
   std::uint32_t candidates = 0;         // face sequences refined
   std::uint32_t dropped_transmission_cap = 0;  // valid paths dropped for crossing > max_transmissions slabs
@@ -130,11 +133,12 @@ std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics
 // edge: reflection-diffraction and diffraction-reflection, unfolded through
 // the face's plane; every leg clear, the reflection point on its face. A
 // path of power |a|^2 below `min_power` (> 0) is not traced: nullopt, its
-// legs' rays not cast.
+// legs' rays not cast. `blocked` (optional): set when a leg is blocked, the
+// path otherwise being there.
 std::optional<Path> compute_diffraction_path(const TraceScene& scene, const Electromagnetics& em, const Node& from,
                                              const Node& to, const Edge& edge, std::uint64_t* rays = nullptr,
                                              const FaceRef* before = nullptr, const FaceRef* after = nullptr,
-                                             double min_power = 0);
+                                             double min_power = 0, bool* blocked = nullptr);
 
 // The LoS class of the direct segment and the objects blocking it.
 LosClass classify_los(const TraceScene& scene, const Vec3& a, const Vec3& b, std::vector<std::uint32_t>& blockers,

@@ -17,21 +17,16 @@
 #include <vector>
 
 #include "meshkit/scene.hpp"
+#include "tracer/path.hpp"
 #include "tracer/precompute.hpp"
 #include "tracer/vec.hpp"
 
 namespace raysweep::tracer {
 
-// A planar face of a placed shape: instance 0 is the static scene, instance
-// v + 1 the vehicle v of the current frame. Faces group coplanar, connected
-// triangles (meshkit planar face ids), so a wall split into triangles is one
-// reflector and a ray through a shared edge names one face.
-struct FaceRef {
-  std::uint32_t instance = 0;
-  std::uint32_t face = 0;
-  auto operator<=>(const FaceRef&) const = default;
-};
-
+// A planar face of a placed shape (FaceRef, tracer/path.hpp) groups
+// coplanar, connected triangles (meshkit planar face ids), so a wall split
+// into triangles is one reflector and a ray through a shared edge names one
+// face.
 struct Plane {
   Vec3 normal{0, 0, 1};  // unit
   double offset = 0;     // normal . x = offset

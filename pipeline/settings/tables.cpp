@@ -217,6 +217,19 @@ const Table<SweepSettings>& sweep_table() {
           "per_pair: a cached pair is retraced when a moved vehicle comes this close to it");
     t.key("block_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.block_frames), "",
           "frames per committed block (resume granularity; caches restart at each block)");
+    t.key("coherence", boolean(), FIELD(options.coherence), "",
+          "re-solve each pair's last paths exactly instead of searching every frame (false: every frame from scratch)");
+    t.key("coherence_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.coherence_frames), "",
+          "coherence: a pair is searched from scratch at least every this many frames");
+    t.key("coherence_margin_m", number(at_least(0)), FIELD(options.coherence_margin_m), "m",
+          "coherence: or once either end moved this far since its last search");
+    t.key("coherence_volatile_share", number(at_least(0)), FIELD(options.coherence_volatile_share), "",
+          "coherence: re-solve a pair only while its paths on vehicles and diffuse records carry at most this "
+          "share of its power");
+    t.key("coherence_direct_share", number(at_least(0)), FIELD(options.coherence_direct_share), "",
+          "coherence: and only while its direct path carries at least this share of its power");
+    t.key("coherence_clear_zone_only", boolean(), FIELD(options.coherence_clear_zone_only), "",
+          "coherence: and only while nothing is in the direct path's first Fresnel zone");
     return t;
   }();
   return t;

@@ -72,8 +72,12 @@ std::string sweep_args(const fs::path& config) {
          " --config " + config.string();
 }
 
+// A coherent sweep that re-solves every pair it can (frame-to-frame
+// coherence restarts with each block, the unit shards share).
 void write_sweep_config(const fs::path& p, int max_depth = 2) {
-  write_text(p, "[sweep]\nbegin_s = 25\nend_s = 27.95\nblock_frames = 5\n[tracer]\nrays_per_source = 1024\nmax_depth = " +
+  write_text(p, "[sweep]\nbegin_s = 25\nend_s = 27.95\nblock_frames = 5\ncoherence = true\n"
+                "coherence_volatile_share = 1\ncoherence_direct_share = 0\ncoherence_clear_zone_only = false\n"
+                "[tracer]\nrays_per_source = 1024\nmax_depth = " +
                     std::to_string(max_depth) + "\n");
 }
 

@@ -636,7 +636,8 @@ TEST(Diffuse, SpecularKeepsOneMinusSSquaredAndDirectiveLobeMatchesIntegral) {
   EXPECT_NEAR(p_on.diffuse / expect, 1.0, 0.05);
   cfg.diffuse = true;
   cfg.diffuse_integration = tracer::DiffuseIntegration::tiles;
-  const auto tiles = powers(tracer::trace_snapshot(scene, nodes, cfg, {}).pairs[0]);
+  const auto tiled = tracer::trace_snapshot(scene, nodes, cfg, {});  // outlives `tiles`' path pointers
+  const auto tiles = powers(tiled.pairs[0]);
   const double sym = ref.symmetric();
   std::printf("directive plate, tiles: expected (mean of both ways) %.6e, traced %.6e (%+.3f %%)\n", sym, tiles.diffuse,
               100 * (tiles.diffuse / sym - 1));
