@@ -344,13 +344,7 @@ Snapshot resolve_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
     intact[p] = resolver.pair(p, *recalls[p], snap.pairs[p], rays.local());
   });
   for (auto r : rays) snap.stats.rays += r;
-  for (const auto& r : snap.pairs) {
-    snap.stats.candidates += r.candidates;
-    snap.stats.paths += r.paths.size();
-    snap.stats.dropped_threshold += r.dropped_threshold;
-    snap.stats.dropped_transmission_cap += r.dropped_transmission_cap;
-    snap.stats.out_of_range_pairs += r.out_of_range;
-  }
+  count_paths(snap);
   return snap;
 }
 

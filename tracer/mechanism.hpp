@@ -55,6 +55,8 @@ enum : int { kStaticBlocked = 1, kVehicleBlocked = 2, kOverCap = 3 };
 bool sequence_path(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
                    PairResult& res, int* blocked = nullptr);
 void assemble_paths(const TracerConfig& cfg, PairResult& res);
+// The snapshot's totals (SnapshotStats' counts) from its pairs.
+void count_paths(Snapshot& snap);
 
 std::unique_ptr<Mechanism> make_direct(const TracerConfig& cfg);
 std::unique_ptr<Mechanism> make_specular(const TracerConfig& cfg);

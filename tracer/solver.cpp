@@ -138,7 +138,8 @@ void trace_pair(const SnapshotPlan& plan, const Mechanisms& mechanisms, std::siz
   lap(tm.assemble);
 }
 
-// The snapshot's totals from its pairs.
+}  // namespace
+
 void count_paths(Snapshot& snap) {
   for (const auto& r : snap.pairs) {
     snap.stats.candidates += r.candidates;
@@ -159,8 +160,6 @@ void count_paths(Snapshot& snap) {
     }
   }
 }
-
-}  // namespace
 
 Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes, const PairList& pairs,
                      const TracerConfig& cfg, const RadioConfig& radio) {
