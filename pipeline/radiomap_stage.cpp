@@ -22,6 +22,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/quantile.hpp"
 #include "pipeline/radiomap_vdb.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/staged_output.hpp"
@@ -77,15 +78,6 @@ std::vector<std::array<std::int32_t, 2>> street_columns(const meshkit::SumoNetwo
         }
     }
   return {cols.begin(), cols.end()};
-}
-
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<std::size_t>(std::floor(pos));
-  const auto hi = std::min(v.size() - 1, lo + 1);
-  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
 }
 
 }  // namespace
@@ -337,7 +329,7 @@ json check_vs_trace(int count, const RadioMapTx& tx, const OpenVoxels& o, const 
     diff.push_back(std::fabs(tracer::to_db(g) - grids[0].f[which[q]]));
   }
   json check = {{"tx", tx.id}, {"voxels", which.size()}, {"above_sensitivity", diff.size()},
-                {"median_abs_db", percentile(diff, 0.5)}, {"p90_abs_db", percentile(diff, 0.9)},
+                {"median_abs_db", quantile(diff, 0.5)}, {"p90_abs_db", quantile(diff, 0.9)},
                 {"max_abs_db", diff.empty() ? 0.0 : *std::max_element(diff.begin(), diff.end())},
                 {"los_class_agreement", which.empty() ? 0.0 : double(los_agree) / which.size()}};
   spdlog::info("radio map vs trace at {} voxels ({} above sensitivity): |diff| median {:.3f} dB, p90 {:.3f} dB",

@@ -23,6 +23,7 @@
 #include "pipeline/preview.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/quantile.hpp"
 #include "pipeline/settings/tables.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
@@ -41,16 +42,6 @@ namespace {
 constexpr double kFloorDb = -200.0;  // gains are floored here; pairs whose reference is at the floor are not compared
 constexpr int kMaxGridRays = 1 << 22;
 constexpr int kMaxReferenceDepth = 5;
-
-// Linear-interpolated quantile (numpy's default) of unsorted values.
-double quantile(std::vector<double> v, double q) {
-  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  std::sort(v.begin(), v.end());
-  const double pos = q * static_cast<double>(v.size() - 1);
-  const auto lo = static_cast<std::size_t>(std::floor(pos));
-  const std::size_t hi = std::min(lo + 1, v.size() - 1);
-  return v[lo] + (pos - static_cast<double>(lo)) * (v[hi] - v[lo]);
-}
 
 double gain_db(double p) { return p > 0 ? std::max(kFloorDb, 10.0 * std::log10(p)) : kFloorDb; }
 
