@@ -46,6 +46,9 @@ RING_SUMO = os.path.join(os.path.dirname(ROOT), "shared", "data", "van3twin", "D
 
 def sweep(rs, city, out, sets):
     """Runs the city up to its sweep; the sweep's wall and tracing seconds."""
+    stamp = os.path.join(out, ".stamps", "sweep.json")  # the sweep runs again every time, the stages before it not
+    if os.path.exists(stamp):
+        os.remove(stamp)
     cmd = [rs, "run", city, "--out", out, "--until", "sweep"]
     for s in sets:
         cmd += ["--set", s]

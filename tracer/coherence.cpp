@@ -218,7 +218,7 @@ struct Resolver {
   const Mechanism* direct;
   const Slots& slots;
   double vanish_limit;
-  const std::vector<std::vector<std::vector<FaceRef>>>& order1;  // per pair: this frame's order-1 candidates
+  const std::vector<std::vector<std::vector<FaceRef>>>& fresh;  // per pair: this frame's image candidates
 
   // One pair: labels, direct path, recalled paths, assembled. False when
   // the recall no longer holds.
@@ -255,7 +255,7 @@ struct Resolver {
     }
     for (const auto& seq : rc.near_misses)
       if (slots.faces(rc, seq, faces)) tries.emplace(faces, -1.0);
-    for (const auto& seq : order1[pt.p]) tries.emplace(seq, -1.0);
+    for (const auto& seq : fresh[pt.p]) tries.emplace(seq, -1.0);
     int blocked = 0;
     for (const auto& [seq, share] : tries) {
       ++res.candidates;
@@ -300,11 +300,12 @@ struct Resolver {
   }
 };
 
-// Every order-1 sequence of this frame (each face, static and vehicles':
-// the image search's first stage, exact and cheap), per pair: a wall's or a
-// vehicle's reflection that appears between two searches is found in the
-// frame it appears.
-std::vector<std::vector<std::vector<FaceRef>>> order1_candidates(const SnapshotPlan& plan) {
+// Every sequence of this frame that the exact image search enumerates but
+// those of two or more static faces (each face at order 1, the ground with
+// a vehicle, a vehicle's own multi-bounce sequences: cheap), per pair: a
+// wall's or a car's reflection that appears between two searches is found
+// in the frame it appears.
+std::vector<std::vector<std::vector<FaceRef>>> frame_candidates(const SnapshotPlan& plan) {
   std::vector<std::vector<std::vector<FaceRef>>> out(plan.pairs.size());
   const auto& cfg = plan.cfg;
   if (!cfg.specular || cfg.max_depth < 1 || plan.n < 2 || cfg.candidates == CandidateSearch::sbr) return out;
@@ -312,7 +313,8 @@ std::vector<std::vector<std::vector<FaceRef>>> order1_candidates(const SnapshotP
   std::vector<std::vector<ImageCandidate>> found(plan.n);
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t i) {
     if (!plan.partners[i].empty())
-      image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], 1, found[i], nullptr, false, false);
+      image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], std::min(cfg.max_depth, 3), found[i],
+                       nullptr, cfg.vehicle_multi_bounce, false, false);
   });
   for (std::uint32_t i = 0; i < plan.n; ++i)
     for (auto& c : found[i]) {
@@ -334,8 +336,8 @@ Snapshot resolve_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
   SnapshotPlan plan(scene, nodes, pairs, config, radio, em);
   const auto direct = make_direct(config);
   const Slots slots(scene);
-  const auto order1 = order1_candidates(plan);
-  const Resolver resolver{plan, direct.get(), slots, vanish_limit, order1};
+  const auto fresh = frame_candidates(plan);
+  const Resolver resolver{plan, direct.get(), slots, vanish_limit, fresh};
   Snapshot snap;
   snap.pairs.resize(pairs.size());
   intact.assign(pairs.size(), 0);

@@ -893,14 +893,15 @@ class ImageSearch : public SourceSearch {
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
-                      bool ground_order3) {
+                      bool ground_order3, bool static_pairs) {
   if (max_order < 1 || receivers.empty()) return;
   ImageSearch search(scene, faces, nodes, src, receivers, out);
   search.static_order1();
   search.vehicle_order1();
   if (max_order >= 2) search.ground_then_vehicle();
   if (multi_bounce && max_order >= 2) search.on_one_vehicle(max_order);
-  if (max_order >= 2) search.static_pairs(ground_order3 && max_order >= 3 && faces.static_count > 0);
+  if (max_order >= 2 && static_pairs)
+    search.static_pairs(ground_order3 && max_order >= 3 && faces.static_count > 0);
   search.add_stats(stats);
 }
 

@@ -113,11 +113,12 @@ ImageFaces image_faces(const TraceScene& scene);
 // receivers only; ground-vehicle and static-static-ground sequences towards
 // all, so that the other end's search yields vehicle-ground and
 // ground-static-static. Deterministic: the output depends only on the scene
-// and the nodes.
+// and the nodes. Without `static_pairs`, no sequence of two or more static
+// faces (the vehicles' own: tracer/coherence.hpp's per-frame pass).
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true,
-                      bool ground_order3 = true);
+                      bool ground_order3 = true, bool static_pairs = true);
 
 // A static face and a vehicle the shoot-and-bounce rays of one source reach
 // in that order (a ray reflected by the face passes within the vehicle's
