@@ -86,14 +86,11 @@ def budget(ref_path, path, floor_db):
         }
 
 
-def floor_of(rs, city, out):
-    """sensitivity - tx power of the city's [radio] (its effective config)."""
-    p = subprocess.run([rs, "config", city, "--json"], capture_output=True, text=True)
-    try:
-        radio = json.loads(p.stdout)["radio"]
-        return radio["sensitivity_dbm"] - radio["tx_power_dbm"]
-    except (ValueError, KeyError):
-        return -93.0 - 30.0
+def floor_of(path):
+    """sensitivity - tx power of the [radio] the dataset was swept with."""
+    with h5py.File(path, "r") as f:
+        radio = json.loads(f.attrs["config"])["radio"]
+    return radio["sensitivity_dbm"] - radio["tx_power_dbm"]
 
 
 # The coherence rules compared (--variants): the default rule, and the
@@ -130,8 +127,8 @@ def compare_case(rs, name, city, out, extra, first_on, variants):
                "trace_s_off": off["trace_s"], "trace_s_on": on["trace_s"], "resolve_s_on": on["resolve_s"],
                "speedup_tracing": round(off["trace_s"] / on["trace_s"], 2),
                "searched_share": round(on["searched"] / max(1, on["traced"]), 3)}
-        row.update(budget(os.path.join(out, "coherence_off.h5"), os.path.join(out, f"coherence_{v}.h5"),
-                          floor_of(rs, city, out)))
+        ref = os.path.join(out, "coherence_off.h5")
+        row.update(budget(ref, os.path.join(out, f"coherence_{v}.h5"), floor_of(ref)))
         print(json.dumps(row), flush=True)
         rows.append(row)
     return rows
