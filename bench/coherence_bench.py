@@ -57,7 +57,7 @@ def sweep(rs, city, out, sets):
     p = subprocess.run(cmd, check=True, capture_output=True, text=True)
     log = p.stdout + p.stderr
     m = re.search(r"swept (\d+) frames .*?, (\d+) pair-channels \((\d+) traced, (\d+) of them searched.*? in "
-                  r"([0-9.]+) s \(([0-9.]+) s tracing, ([0-9.]+) s of it re-solving\)", log)
+                  r"([0-9.]+) s \(([0-9.]+) s tracing, ([0-9.]+) s of it re-solving[;)]", log)
     if not m:
         raise SystemExit(f"no sweep summary in the log of {' '.join(cmd)}:\n{log[-2000:]}")
     return {"frames": int(m.group(1)), "traced": int(m.group(3)), "searched": int(m.group(4)),

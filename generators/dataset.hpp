@@ -10,8 +10,10 @@
 // static_object_count + n.
 #pragma once
 
+#include <cmath>
 #include <complex>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -56,6 +58,20 @@ struct LinkRecord {
   std::uint8_t los_class_fresnel = 0;  // the label by the first Fresnel zone (tracer/fresnel.hpp)
   float fresnel_clearance = 1;         // worst obstacle's h / r1 (negative: crossed), capped at 1
   float vehicle_loss_db = 0;           // vehicles' knife-edge loss on the direct path (>= 0)
+  // Summaries of every path (tracer/channel_summary.hpp), kept at every store level.
+  std::uint32_t paths_beyond_top_k = 0;  // in the gains but not stored (paths_top_k); not in path_count
+  // 10 log10 sum |a|^2 of the paths with a diffuse interaction
+  float diffuse_gain_db = -std::numeric_limits<float>::infinity();
+  // The strongest path's power over the others' (+inf: one path)
+  float k_factor_db = -std::numeric_limits<float>::infinity();
+  float rms_doppler_spread_hz = 0;
+  float aod_spread[2] = {0, 0};  // zenith (RMS), azimuth (circular) spreads at departure, rad
+  float aoa_spread[2] = {0, 0};  // and at arrival
+  // The strongest path's delay less first_delay_s, and its directions (theta,
+  // phi); 0 without paths.
+  float strongest_excess_delay_s = 0;
+  float strongest_aod[2] = {0, 0};
+  float strongest_aoa[2] = {0, 0};
 };
 
 struct PathRecord {
@@ -70,10 +86,18 @@ struct PathRecord {
 struct InteractionRecord {
   std::uint8_t type = 0;     // tracer::InteractionType: 1 specular, 2 refraction, 3 diffuse, 4 diffraction
   std::uint32_t object = 0;  // index into the dataset's object table
-  float x = 0, y = 0, z = 0; // interaction point (scene frame, m)
+  float x = 0, y = 0, z = 0; // interaction point (scene frame, m); NaN where the level stores none
 };
 
+// What a dataset stores, cumulatively (schemas/README.md, "Store levels"):
+// links: every link column; cfr: + the frequency responses; paths: + the
+// paths and their interactions' types and objects; full: + the interaction
+// points. Link columns and CFR are computed from every path whatever the level.
+enum class StoreLevel : std::uint8_t { links = 0, cfr = 1, paths = 2, full = 3 };
+
 // One traced frame. Links are sorted by (tx, rx); paths by link then delay.
+// Below the paths level `paths` and `interactions` are empty and a link's
+// path_count counts the paths its gains sum; below cfr, `cfr` is empty.
 struct FrameRecord {
   double time_s = 0;
   std::vector<NodeState> nodes;  // nodes present in this frame, sorted by node index

@@ -2,10 +2,13 @@
 
 #include <hdf5.h>
 
+#include <cmath>
+#include <limits>
 #include <map>
 
 #include "generators/hdf5_columns.hpp"
 #include "generators/hdf5_file.hpp"
+#include "generators/store_level.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
@@ -42,6 +45,13 @@ struct DatasetReader::Impl {
   std::vector<T> read(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width = 1) {
     return dset(name).read<T>(mtype, start, n, width);
   }
+  // A column added in a later minor version: `fill` in files written before it.
+  template <class T>
+  std::vector<T> read_or(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width, T fill) {
+    if (!h5.exists(name)) return std::vector<T>(static_cast<std::size_t>(n * width), fill);
+    return read<T>(name, mtype, start, n, width);
+  }
+  bool stores_paths() const { return header.store >= StoreLevel::paths; }
   std::string str_attr(const std::string& name) { return h5.attr<std::string>("/", name); }
   nlohmann::json json_attr(const std::string& name) {
     const std::string text = str_attr(name);
@@ -68,6 +78,14 @@ struct DatasetReader::Impl {
     header.carrier_hz = h5.attr<double>("/", "carrier_hz");
     header.bandwidth_hz = h5.attr<double>("/", "bandwidth_hz");
     if (h5.has_attr("/", "shard")) header.shard = str_attr("shard");
+    if (h5.has_attr("/", "store")) {
+      try {
+        header.store = parse_store_level(str_attr("store"));
+      } catch (const std::invalid_argument& e) {
+        fail("attribute store", e.what());
+      }
+    }
+    if (h5.has_attr("/", "paths_top_k")) header.paths_top_k = h5.attr<std::uint32_t>("/", "paths_top_k");
     if (h5.exists("/cfr")) {
       h5.group("/cfr");
       header.cfr_subcarriers = h5.attr<std::uint32_t>("/cfr", "subcarriers");
@@ -83,8 +101,10 @@ struct DatasetReader::Impl {
     link_count = read<std::uint32_t>("/frames/link_count", H5T_NATIVE_UINT32, 0, F);
     S = rows("/node_states/node");
     L = rows("/links/tx");
-    P = rows("/paths/tau_s");
-    I = rows("/interactions/type");
+    if (stores_paths()) {
+      P = rows("/paths/tau_s");
+      I = rows("/interactions/type");
+    }
     std::uint64_t s = 0, l = 0;
     for (hsize_t f = 0; f < F; ++f) {
       if (node_offset[f] != s || link_offset[f] != l)
@@ -110,7 +130,7 @@ struct DatasetReader::Impl {
   }
 
   std::uint64_t path_start(std::uint64_t link) {
-    return link >= L ? P : read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, link, 1)[0];
+    return link >= L || !stores_paths() ? P : read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, link, 1)[0];
   }
   std::uint64_t interaction_start(std::uint64_t path) {
     return path >= P ? I : read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, path, 1)[0];
@@ -151,23 +171,43 @@ struct DatasetReader::Impl {
     const auto l_fd = read<double>("/links/first_delay_s", H5T_NATIVE_DOUBLE, a.links, nl);
     const auto l_rms = read<float>("/links/rms_delay_spread_s", f32, a.links, nl);
     const auto l_pc = read<std::uint32_t>("/links/path_count", u32, a.links, nl);
-    const auto l_po = read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, a.links, nl);
-    const auto l_below = read<std::uint32_t>("/links/paths_below_threshold", u32, a.links, nl);
-    const auto l_losf = read<std::uint8_t>("/links/los_class_fresnel", u8, a.links, nl);
-    const auto l_clear = read<float>("/links/fresnel_clearance", f32, a.links, nl);
-    const auto l_vloss = read<float>("/links/vehicle_loss_db", f32, a.links, nl);
+    const bool paths = stores_paths();
+    const auto l_po = paths ? read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, a.links, nl)
+                            : std::vector<std::uint64_t>(nl, 0);
+    const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
+    const auto l_below = read_or<std::uint32_t>("/links/paths_below_threshold", u32, a.links, nl, 1, 0);
+    const auto l_losf = read_or<std::uint8_t>("/links/los_class_fresnel", u8, a.links, nl, 1, 0);
+    const auto l_clear = read_or<float>("/links/fresnel_clearance", f32, a.links, nl, 1, 1);
+    const auto l_vloss = read_or<float>("/links/vehicle_loss_db", f32, a.links, nl, 1, 0);
+    const auto l_beyond = read_or<std::uint32_t>("/links/paths_beyond_top_k", u32, a.links, nl, 1, 0);
+    const auto l_diffuse = read_or<float>("/links/diffuse_gain_db", f32, a.links, nl, 1, -inf);
+    const auto l_kf = read_or<float>("/links/k_factor_db", f32, a.links, nl, 1, -inf);
+    const auto l_dsp = read_or<float>("/links/rms_doppler_spread_hz", f32, a.links, nl, 1, 0);
+    const auto l_asd = read_or<float>("/links/aod_spread_rad", f32, a.links, nl, 2, 0);
+    const auto l_asa = read_or<float>("/links/aoa_spread_rad", f32, a.links, nl, 2, 0);
+    const auto l_sd = read_or<float>("/links/strongest_excess_delay_s", f32, a.links, nl, 1, 0);
+    const auto l_sod = read_or<float>("/links/strongest_aod", f32, a.links, nl, 2, 0);
+    const auto l_soa = read_or<float>("/links/strongest_aoa", f32, a.links, nl, 2, 0);
 
-    const auto p_a = read<std::complex<float>>("/paths/a", types.mem(hdf5::Dtype::c64), a.paths, np);
-    const auto p_tau = read<double>("/paths/tau_s", H5T_NATIVE_DOUBLE, a.paths, np);
-    const auto p_aod = read<float>("/paths/aod", f32, a.paths, np, 2);
-    const auto p_aoa = read<float>("/paths/aoa", f32, a.paths, np, 2);
-    const auto p_dop = read<float>("/paths/doppler_hz", f32, a.paths, np);
-    const auto p_ic = read<std::uint8_t>("/paths/interaction_count", u8, a.paths, np);
-    const auto p_io = read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, a.paths, np);
-
-    const auto i_type = read<std::uint8_t>("/interactions/type", u8, a.interactions, ni);
-    const auto i_obj = read<std::uint32_t>("/interactions/object", u32, a.interactions, ni);
-    const auto i_pt = read<float>("/interactions/point", f32, a.interactions, ni, 3);
+    std::vector<std::complex<float>> p_a;
+    std::vector<double> p_tau;
+    std::vector<float> p_aod, p_aoa, p_dop, i_pt;
+    std::vector<std::uint8_t> p_ic, i_type;
+    std::vector<std::uint64_t> p_io;
+    std::vector<std::uint32_t> i_obj;
+    if (paths) {
+      p_a = read<std::complex<float>>("/paths/a", types.mem(hdf5::Dtype::c64), a.paths, np);
+      p_tau = read<double>("/paths/tau_s", H5T_NATIVE_DOUBLE, a.paths, np);
+      p_aod = read<float>("/paths/aod", f32, a.paths, np, 2);
+      p_aoa = read<float>("/paths/aoa", f32, a.paths, np, 2);
+      p_dop = read<float>("/paths/doppler_hz", f32, a.paths, np);
+      p_ic = read<std::uint8_t>("/paths/interaction_count", u8, a.paths, np);
+      p_io = read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, a.paths, np);
+      i_type = read<std::uint8_t>("/interactions/type", u8, a.interactions, ni);
+      i_obj = read<std::uint32_t>("/interactions/object", u32, a.interactions, ni);
+      i_pt = header.store >= StoreLevel::full ? read<float>("/interactions/point", f32, a.interactions, ni, 3)
+                                              : std::vector<float>(static_cast<std::size_t>(3 * ni), nan);
+    }
 
     std::vector<std::complex<float>> cfr;
     if (K > 0) cfr = read<std::complex<float>>("/cfr/h", types.mem(hdf5::Dtype::c64), a.links, nl, K);
@@ -184,9 +224,13 @@ struct DatasetReader::Impl {
                             s_vel[3 * s + 2], s_head[s]});
       const std::size_t l0 = l;
       for (std::uint32_t j = 0; j < link_count[f]; ++j, ++l) {
+        LinkRecord rec{l_tx[l], l_rx[l], l_los[l], l_flags[l], l_block[l], l_gc[l], l_gi[l], l_fd[l], l_rms[l],
+                       l_pc[l], l_below[l], l_losf[l], l_clear[l], l_vloss[l], l_beyond[l], l_diffuse[l], l_kf[l],
+                       l_dsp[l], {l_asd[2 * l], l_asd[2 * l + 1]}, {l_asa[2 * l], l_asa[2 * l + 1]}, l_sd[l],
+                       {l_sod[2 * l], l_sod[2 * l + 1]}, {l_soa[2 * l], l_soa[2 * l + 1]}};
+        fr.links.push_back(rec);
+        if (!paths) continue;
         if (l_po[l] != po) fail("/links/path_offset", "row " + std::to_string(a.links + l) + " is not the running sum");
-        fr.links.push_back({l_tx[l], l_rx[l], l_los[l], l_flags[l], l_block[l], l_gc[l], l_gi[l], l_fd[l], l_rms[l],
-                            l_pc[l], l_below[l], l_losf[l], l_clear[l], l_vloss[l]});
         for (std::uint32_t q = 0; q < l_pc[l]; ++q, ++p, ++po) {
           if (p >= np || p_io[p] != io)
             fail("/paths/interaction_offset", "row " + std::to_string(a.paths + p) + " is not the running sum");

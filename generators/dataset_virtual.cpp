@@ -9,6 +9,7 @@
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_tables.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/store_level.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
@@ -24,6 +25,11 @@ namespace {
 bool computed(const std::string& group, const std::string& name) {
   return group == "frames" || (group == "links" && (name == "frame" || name == "path_offset")) ||
          (group == "paths" && name == "interaction_offset");
+}
+
+// A schema group's or dataset's presence at a store level ("stored_from").
+bool stored_at(const nlohmann::json& spec, StoreLevel level) {
+  return !spec.contains("stored_from") || level >= parse_store_level(spec.at("stored_from").get<std::string>());
 }
 
 struct Piece {
@@ -79,6 +85,9 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   cf.attr("", "carrier_hz", header.carrier_hz);
   cf.attr("", "bandwidth_hz", header.bandwidth_hz);
   if (!header.shard.empty()) cf.attr("", "shard", header.shard);
+  cf.attr("", "store", std::string(store_level_name(header.store)));
+  cf.attr("", "paths_top_k", std::uint32_t{header.paths_top_k});
+  const bool paths = header.store >= StoreLevel::paths;
   if (K > 0) {
     cf.attr("cfr", "carrier_hz", header.carrier_hz);
     cf.attr("cfr", "subcarrier_spacing_hz", header.cfr_subcarrier_spacing_hz);
@@ -92,8 +101,9 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   Column* f_loff = cf.column("frames", "link_offset", Dtype::u64);
   Column* f_lcount = cf.column("frames", "link_count", Dtype::u32);
   Column* l_frame = cf.column("links", "frame", Dtype::u32);
-  Column* l_poff = cf.column("links", "path_offset", Dtype::u64);
-  Column* p_ioff = cf.column("paths", "interaction_offset", Dtype::u64);
+  Column* l_poff = paths ? cf.column("links", "path_offset", Dtype::u64) : nullptr;
+  Column* p_ioff = paths ? cf.column("paths", "interaction_offset", Dtype::u64) : nullptr;
+  std::uint64_t path_count = 0;  // the links' path counts, stored or not (the root attribute)
   FrameRows at;  // rows of the pieces before this one
   std::uint64_t frame = 0;
   for (const auto& p : ps) {
@@ -113,10 +123,13 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
       lk += lcount[k];
     }
     const hsize_t nl = p.b.links - p.a.links, np = p.b.paths - p.a.paths;
-    for (auto v : read_source<std::uint64_t>(p, "/links/path_offset", H5T_NATIVE_UINT64, p.a.links, nl))
-      l_poff->put(std::uint64_t{v - p.a.paths + at.paths});
-    for (auto v : read_source<std::uint64_t>(p, "/paths/interaction_offset", H5T_NATIVE_UINT64, p.a.paths, np))
-      p_ioff->put(std::uint64_t{v - p.a.interactions + at.interactions});
+    for (auto v : read_source<std::uint64_t>(p, "/links/path_count", H5T_NATIVE_UINT64, p.a.links, nl)) path_count += v;
+    if (paths) {
+      for (auto v : read_source<std::uint64_t>(p, "/links/path_offset", H5T_NATIVE_UINT64, p.a.links, nl))
+        l_poff->put(std::uint64_t{v - p.a.paths + at.paths});
+      for (auto v : read_source<std::uint64_t>(p, "/paths/interaction_offset", H5T_NATIVE_UINT64, p.a.paths, np))
+        p_ioff->put(std::uint64_t{v - p.a.interactions + at.interactions});
+    }
     cf.maybe_flush();
     frame += s.frame_count;
     at.states += p.b.states - p.a.states;
@@ -128,10 +141,10 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   // Mapped columns.
   for (const auto& g : dataset_schema().at("groups")) {
     const std::string group = g.at("name");
-    if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0)) continue;
+    if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0) || !stored_at(g, header.store)) continue;
     for (const auto& d : g.at("datasets")) {
       const std::string name = d.at("name");
-      if (computed(group, name)) continue;
+      if (computed(group, name) || !stored_at(d, header.store)) continue;
       const std::string where = "/" + group + "/" + name;
       const Dtype dtype = hdf5::parse_dtype(d.at("dtype").get<std::string>());
       const hsize_t width = d.at("shape").size() == 2 ? (d.at("shape")[1].is_string() ? K : d.at("shape")[1].get<hsize_t>()) : 1;
@@ -181,7 +194,7 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   cf.attr("", "frame_count", std::uint64_t{frames});
   cf.attr("", "node_count", std::uint64_t{nodes.size()});
   cf.attr("", "link_count", std::uint64_t{total.links});
-  cf.attr("", "path_count", std::uint64_t{total.paths});
+  cf.attr("", "path_count", std::uint64_t{path_count});
   cf.close_all(true);
 }
 

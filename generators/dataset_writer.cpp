@@ -16,6 +16,7 @@
 
 #include "generators/dataset_schema.hpp"
 #include "generators/hdf5_columns.hpp"
+#include "generators/store_level.hpp"
 
 namespace raysweep::generators {
 
@@ -34,13 +35,21 @@ struct DatasetWriter::Impl {
   Column *f_time, *f_node_offset, *f_node_count, *f_link_offset, *f_link_count;
   Column *s_node, *s_position, *s_velocity, *s_heading;
   Column *l_frame, *l_tx, *l_rx, *l_los, *l_flags, *l_blockers, *l_gain_c, *l_gain_i, *l_first_delay, *l_rms,
-      *l_path_count, *l_los_fresnel, *l_clearance, *l_vehicle_loss, *l_path_offset, *l_below;
-  Column *p_a, *p_tau, *p_aod, *p_aoa, *p_doppler, *p_icount, *p_ioffset;
-  Column *i_type, *i_object, *i_point;
+      *l_path_count, *l_los_fresnel, *l_clearance, *l_vehicle_loss, *l_below;
+  Column *l_beyond, *l_diffuse, *l_k_factor, *l_doppler_spread, *l_aod_spread, *l_aoa_spread, *l_strongest_delay,
+      *l_strongest_aod, *l_strongest_aoa;
+  // Absent below their store level.
+  Column* l_path_offset = nullptr;
+  Column *p_a = nullptr, *p_tau = nullptr, *p_aod = nullptr, *p_aoa = nullptr, *p_doppler = nullptr,
+         *p_icount = nullptr, *p_ioffset = nullptr;
+  Column *i_type = nullptr, *i_object = nullptr, *i_point = nullptr;
   Column* c_h = nullptr;
+  FrameRecord reduced;  // the frame being appended, reduced to the level
 
   // Running totals.
-  std::uint64_t frame_count = 0, state_count = 0, link_count = 0, path_count = 0, interaction_count = 0;
+  std::uint64_t frame_count = 0, state_count = 0, link_count = 0, interaction_count = 0;
+  std::uint64_t path_count = 0;   // sum of the links' path_count (= rows of /paths where stored)
+  std::uint64_t path_rows = 0;
   double last_time = -std::numeric_limits<double>::infinity();
   std::int64_t max_node = -1, max_object = -1;
 
@@ -61,6 +70,8 @@ struct DatasetWriter::Impl {
     out.attr("", "carrier_hz", header.carrier_hz);
     out.attr("", "bandwidth_hz", header.bandwidth_hz);
     if (!header.shard.empty()) out.attr("", "shard", header.shard);
+    out.attr("", "store", std::string(store_level_name(header.store)));
+    out.attr("", "paths_top_k", std::uint32_t{header.paths_top_k});
 
     f_time = column("frames", "time_s", Dtype::f64);
     f_node_offset = column("frames", "node_offset", Dtype::u64);
@@ -88,21 +99,31 @@ struct DatasetWriter::Impl {
     l_los_fresnel = column("links", "los_class_fresnel", Dtype::u8);
     l_clearance = column("links", "fresnel_clearance", Dtype::f32);
     l_vehicle_loss = column("links", "vehicle_loss_db", Dtype::f32);
-    l_path_offset = column("links", "path_offset", Dtype::u64);
+    l_beyond = column("links", "paths_beyond_top_k", Dtype::u32);
+    l_diffuse = column("links", "diffuse_gain_db", Dtype::f32);
+    l_k_factor = column("links", "k_factor_db", Dtype::f32);
+    l_doppler_spread = column("links", "rms_doppler_spread_hz", Dtype::f32);
+    l_aod_spread = column("links", "aod_spread_rad", Dtype::f32);
+    l_aoa_spread = column("links", "aoa_spread_rad", Dtype::f32);
+    l_strongest_delay = column("links", "strongest_excess_delay_s", Dtype::f32);
+    l_strongest_aod = column("links", "strongest_aod", Dtype::f32);
+    l_strongest_aoa = column("links", "strongest_aoa", Dtype::f32);
 
-    p_a = column("paths", "a", Dtype::c64);
-    p_tau = column("paths", "tau_s", Dtype::f64);
-    p_aod = column("paths", "aod", Dtype::f32);
-    p_aoa = column("paths", "aoa", Dtype::f32);
-    p_doppler = column("paths", "doppler_hz", Dtype::f32);
-    p_icount = column("paths", "interaction_count", Dtype::u8);
-    p_ioffset = column("paths", "interaction_offset", Dtype::u64);
+    if (header.store >= StoreLevel::paths) {
+      l_path_offset = column("links", "path_offset", Dtype::u64);
+      p_a = column("paths", "a", Dtype::c64);
+      p_tau = column("paths", "tau_s", Dtype::f64);
+      p_aod = column("paths", "aod", Dtype::f32);
+      p_aoa = column("paths", "aoa", Dtype::f32);
+      p_doppler = column("paths", "doppler_hz", Dtype::f32);
+      p_icount = column("paths", "interaction_count", Dtype::u8);
+      p_ioffset = column("paths", "interaction_offset", Dtype::u64);
+      i_type = column("interactions", "type", Dtype::u8);
+      i_object = column("interactions", "object", Dtype::u32);
+      if (header.store >= StoreLevel::full) i_point = column("interactions", "point", Dtype::f32);
+    }
 
-    i_type = column("interactions", "type", Dtype::u8);
-    i_object = column("interactions", "object", Dtype::u32);
-    i_point = column("interactions", "point", Dtype::f32);
-
-    if (header.cfr_subcarriers > 0) {
+    if (header.cfr_subcarriers > 0 && header.store >= StoreLevel::cfr) {
       out.attr("cfr", "carrier_hz", header.carrier_hz);
       out.attr("cfr", "subcarrier_spacing_hz", header.cfr_subcarrier_spacing_hz);
       out.attr("cfr", "subcarriers", std::uint32_t{header.cfr_subcarriers});
@@ -144,7 +165,7 @@ struct DatasetWriter::Impl {
       if ((l.flags & kLinkOutOfRange) && l.path_count > 0) bad(at + ": out-of-range link with paths");
       paths += l.path_count;
     }
-    if (paths != fr.paths.size())
+    if (paths != fr.paths.size() && !(header.store < StoreLevel::paths && fr.paths.empty()))
       bad("links' path counts sum to " + std::to_string(paths) + " but the frame has " + std::to_string(fr.paths.size()) +
           " paths");
     std::uint64_t interactions = 0;
@@ -156,14 +177,20 @@ struct DatasetWriter::Impl {
       if (fr.interactions[i].type < 1 || fr.interactions[i].type > 4)
         bad("interaction " + std::to_string(i) + ": type " + std::to_string(fr.interactions[i].type) + " not in 1..4");
     const std::uint64_t cfr_expected = std::uint64_t{fr.links.size()} * header.cfr_subcarriers;
-    if (fr.cfr.size() != cfr_expected)
+    if (fr.cfr.size() != cfr_expected && !(header.store < StoreLevel::cfr && fr.cfr.empty()))
       bad("cfr has " + std::to_string(fr.cfr.size()) + " values, expected links x subcarriers = " +
           std::to_string(cfr_expected));
   }
 
-  void append(const FrameRecord& fr) {
+  void append(const FrameRecord& frame) {
     if (finished) throw std::runtime_error(file + ": append() after finish()");
-    check(fr);
+    check(frame);
+    const bool reduce = header.store < StoreLevel::full || header.paths_top_k > 0;
+    if (reduce) {
+      reduced = frame;
+      reduce_frame(reduced, header.store, header.paths_top_k);
+    }
+    const FrameRecord& fr = reduce ? reduced : frame;
 
     const std::uint32_t frame_index = static_cast<std::uint32_t>(frame_count);
     if (frame_count >= std::numeric_limits<std::uint32_t>::max()) throw std::invalid_argument(file + ": too many frames");
@@ -183,9 +210,11 @@ struct DatasetWriter::Impl {
     }
 
     for (Column* c : {l_frame, l_tx, l_rx, l_los, l_flags, l_blockers, l_gain_c, l_gain_i, l_first_delay, l_rms,
-                      l_path_count, l_path_offset, l_below, l_los_fresnel, l_clearance})
-      c->reserve_rows(fr.links.size());
-    std::uint64_t path_offset = path_count;
+                      l_path_count, l_below, l_los_fresnel, l_clearance, l_vehicle_loss, l_beyond, l_diffuse,
+                      l_k_factor, l_doppler_spread, l_aod_spread, l_aoa_spread, l_strongest_delay, l_strongest_aod,
+                      l_strongest_aoa, l_path_offset})
+      if (c) c->reserve_rows(fr.links.size());
+    std::uint64_t frame_paths = 0;
     for (const auto& l : fr.links) {
       l_frame->put(frame_index);
       l_tx->put(l.tx);
@@ -202,10 +231,34 @@ struct DatasetWriter::Impl {
       l_los_fresnel->put(l.los_class_fresnel);
       l_clearance->put(l.fresnel_clearance);
       l_vehicle_loss->put(l.vehicle_loss_db);
-      l_path_offset->put(path_offset);
-      path_offset += l.path_count;
+      l_beyond->put(l.paths_beyond_top_k);
+      l_diffuse->put(l.diffuse_gain_db);
+      l_k_factor->put(l.k_factor_db);
+      l_doppler_spread->put(l.rms_doppler_spread_hz);
+      l_aod_spread->put(l.aod_spread[0]), l_aod_spread->put(l.aod_spread[1]);
+      l_aoa_spread->put(l.aoa_spread[0]), l_aoa_spread->put(l.aoa_spread[1]);
+      l_strongest_delay->put(l.strongest_excess_delay_s);
+      l_strongest_aod->put(l.strongest_aod[0]), l_strongest_aod->put(l.strongest_aod[1]);
+      l_strongest_aoa->put(l.strongest_aoa[0]), l_strongest_aoa->put(l.strongest_aoa[1]);
+      if (l_path_offset) l_path_offset->put(path_rows + frame_paths);
+      frame_paths += l.path_count;
+    }
+    path_count += frame_paths;
+    if (p_a) append_paths(fr);
+    if (c_h) {
+      c_h->reserve_rows(fr.links.size());
+      for (const auto& v : fr.cfr) c_h->put(v);
     }
 
+    for (const auto& l : fr.links) max_node = std::max<std::int64_t>(max_node, l.rx);
+    ++frame_count;
+    state_count += fr.nodes.size();
+    link_count += fr.links.size();
+    last_time = fr.time_s;
+    out.maybe_flush();
+  }
+
+  void append_paths(const FrameRecord& fr) {
     for (Column* c : {p_a, p_tau, p_aod, p_aoa, p_doppler, p_icount, p_ioffset}) c->reserve_rows(fr.paths.size());
     std::uint64_t interaction_offset = interaction_count;
     for (const auto& p : fr.paths) {
@@ -219,27 +272,16 @@ struct DatasetWriter::Impl {
       interaction_offset += p.interaction_count;
     }
 
-    for (Column* c : {i_type, i_object, i_point}) c->reserve_rows(fr.interactions.size());
+    for (Column* c : {i_type, i_object, i_point})
+      if (c) c->reserve_rows(fr.interactions.size());
     for (const auto& it : fr.interactions) {
       i_type->put(it.type);
       i_object->put(it.object);
-      i_point->put(it.x), i_point->put(it.y), i_point->put(it.z);
+      if (i_point) i_point->put(it.x), i_point->put(it.y), i_point->put(it.z);
       max_object = std::max<std::int64_t>(max_object, it.object);
     }
-
-    if (c_h) {
-      c_h->reserve_rows(fr.links.size());
-      for (const auto& v : fr.cfr) c_h->put(v);
-    }
-
-    for (const auto& l : fr.links) max_node = std::max<std::int64_t>(max_node, l.rx);
-    ++frame_count;
-    state_count += fr.nodes.size();
-    link_count += fr.links.size();
-    path_count = path_offset;
+    path_rows += fr.paths.size();
     interaction_count = interaction_offset;
-    last_time = fr.time_s;
-    out.maybe_flush();
   }
 
   void flush_all() { out.flush_all(); }

@@ -25,7 +25,7 @@
 
 namespace raysweep::generators {
 
-inline constexpr const char* kDatasetSchemaVersion = "1.3.0";
+inline constexpr const char* kDatasetSchemaVersion = "1.4.0";
 inline constexpr const char* kDatasetFormat = "raysweep-channels";
 
 struct DatasetHeader {
@@ -35,6 +35,10 @@ struct DatasetHeader {
   double carrier_hz = 0, bandwidth_hz = 0;
   std::uint32_t cfr_subcarriers = 0;  // 0: no /cfr group; else FrameRecord::cfr has links x K values
   double cfr_subcarrier_spacing_hz = 0;
+  // What the file stores (dataset.hpp's StoreLevel; root attributes `store`,
+  // `paths_top_k`): append() reduces each frame to it (store_level.hpp).
+  StoreLevel store = StoreLevel::full;
+  std::uint32_t paths_top_k = 0;
   // Shard files only (JSON text of the root attribute `shard`, see schemas/README.md);
   // empty for whole datasets.
   std::string shard;
@@ -49,11 +53,13 @@ class DatasetWriter {
   DatasetWriter(const DatasetWriter&) = delete;
   DatasetWriter& operator=(const DatasetWriter&) = delete;
 
-  // Appends one frame. Throws std::invalid_argument (nothing written) when the
-  // record is inconsistent: node states not strictly sorted by node, links not
-  // strictly sorted by (tx, rx) or with tx >= rx or naming a node absent from the
-  // frame, sum of path_count != paths.size(), sum of interaction_count !=
-  // interactions.size(), cfr.size() != links.size() x subcarriers, an
+  // Appends one frame, reduced to the header's store level. Throws
+  // std::invalid_argument (nothing written) when the record is inconsistent:
+  // node states not strictly sorted by node, links not strictly sorted by
+  // (tx, rx) or with tx >= rx or naming a node absent from the frame, sum of
+  // path_count != paths.size() (paths may be empty below the paths level),
+  // sum of interaction_count != interactions.size(), cfr.size() !=
+  // links.size() x subcarriers (or empty below the cfr level), an
   // out-of-range link with paths, frame time before the previous frame's.
   // std::runtime_error on HDF5 failures or after finish().
   void append(const FrameRecord& frame);

@@ -22,7 +22,8 @@ namespace {
 
 constexpr std::size_t kMagicBytes = 8;
 constexpr std::uint64_t kNodeBytes = 4 + 3 * 8 + 4 * 4;                      // 44
-constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 4 + 4;  // 49
+constexpr std::uint64_t kLinkBytes = 4 + 4 + 1 + 1 + 2 + 4 + 4 + 8 + 4 + 4 + 4 + 1 + 4 + 4 +  // 49, then
+                                     4 + 4 + 4 + 4 + 8 + 8 + 4 + 8 + 8;                    // 52 of summaries
 constexpr std::uint64_t kPathBytes = 4 + 4 + 8 + 4 * 4 + 4 + 1;              // 37
 constexpr std::uint64_t kInteractionBytes = 1 + 4 + 3 * 4;                   // 17
 constexpr std::uint64_t kCfrBytes = 8;
@@ -149,6 +150,13 @@ void encode_frame(Out& o, const FrameRecord& f) {
     o.u8(l.los_class_fresnel);
     o.f32(l.fresnel_clearance);
     o.f32(l.vehicle_loss_db);
+    o.u32(l.paths_beyond_top_k);
+    o.f32(l.diffuse_gain_db);
+    o.f32(l.k_factor_db);
+    o.f32(l.rms_doppler_spread_hz);
+    for (float v : {l.aod_spread[0], l.aod_spread[1], l.aoa_spread[0], l.aoa_spread[1]}) o.f32(v);
+    o.f32(l.strongest_excess_delay_s);
+    for (float v : {l.strongest_aod[0], l.strongest_aod[1], l.strongest_aoa[0], l.strongest_aoa[1]}) o.f32(v);
   }
   for (const auto& p : f.paths) {
     o.f32(p.a.real()), o.f32(p.a.imag());
@@ -187,6 +195,13 @@ void decode_frame(In& r, FrameRecord& f) {
     l.los_class_fresnel = r.u8();
     l.fresnel_clearance = r.f32();
     l.vehicle_loss_db = r.f32();
+    l.paths_beyond_top_k = r.u32();
+    l.diffuse_gain_db = r.f32();
+    l.k_factor_db = r.f32();
+    l.rms_doppler_spread_hz = r.f32();
+    for (float* v : {&l.aod_spread[0], &l.aod_spread[1], &l.aoa_spread[0], &l.aoa_spread[1]}) *v = r.f32();
+    l.strongest_excess_delay_s = r.f32();
+    for (float* v : {&l.strongest_aod[0], &l.strongest_aod[1], &l.strongest_aoa[0], &l.strongest_aoa[1]}) *v = r.f32();
   }
   f.paths.resize(r.count(n_paths, kPathBytes, "paths"));
   for (auto& q : f.paths) {

@@ -2,9 +2,9 @@
 // with kill -9) can resume from the last block on disk instead of starting over.
 //
 // File layout (all integers and floats little-endian, IEEE 754 floats):
-//   magic        8 bytes  "RSWBLK4\n" (2: links carry paths_below_threshold,
+//   magic        8 bytes  "RSWBLK5\n" (2: links carry paths_below_threshold,
 //                                     3: and los_class_fresnel, fresnel_clearance,
-//                                     4: and vehicle_loss_db)
+//                                     4: and vehicle_loss_db, 5: and the summaries)
 //   frame_count  u64
 //   per frame:
 //     time_s f64; node_count, link_count, path_count, interaction_count, cfr_count: u64 each
@@ -13,7 +13,11 @@
 //                  gain_coherent_db f32, gain_incoherent_db f32, first_delay_s f64,
 //                  rms_delay_spread_s f32, path_count u32,
 //                  paths_below_threshold u32, los_class_fresnel u8,
-//                  fresnel_clearance f32, vehicle_loss_db f32                    (49 bytes each)
+//                  fresnel_clearance f32, vehicle_loss_db f32,
+//                  paths_beyond_top_k u32, diffuse_gain_db f32, k_factor_db f32,
+//                  rms_doppler_spread_hz f32, aod_spread aoa_spread 2 x f32 each,
+//                  strongest_excess_delay_s f32, strongest_aod strongest_aoa 2 x f32 each
+//                                                                                (101 bytes each)
 //     paths        a.re f32, a.im f32, tau_s f64, theta_t phi_t theta_r phi_r f32,
 //                  doppler_hz f32, interaction_count u8                          (37 bytes each)
 //     interactions type u8, object u32, x y z f32                                (17 bytes each)
@@ -32,7 +36,7 @@
 
 namespace raysweep::generators {
 
-inline constexpr char kFrameBlockMagic[9] = "RSWBLK4\n";
+inline constexpr char kFrameBlockMagic[9] = "RSWBLK5\n";
 
 // Streams frames into a block with one frame in memory at a time: append()
 // serialises a frame to path + ".tmp"; commit() writes the frame count and the

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 
+#include "tracer/channel_summary.hpp"
+
 namespace raysweep::generators {
 
 LinkRecord link_record(const tracer::PairResult& res, std::uint32_t tx, std::uint32_t rx) {
@@ -20,6 +22,19 @@ LinkRecord link_record(const tracer::PairResult& res, std::uint32_t tx, std::uin
   L.fresnel_clearance = static_cast<float>(res.fresnel_clearance);
   L.vehicle_loss_db = static_cast<float>(res.vehicle_loss_db);
   if (res.out_of_range) L.flags |= kLinkOutOfRange;
+  const tracer::ChannelSummary sum = tracer::channel_summary(res.paths);
+  L.diffuse_gain_db = static_cast<float>(tracer::to_db(sum.diffuse_gain));
+  L.k_factor_db = static_cast<float>(tracer::to_db(sum.k_factor));
+  L.rms_doppler_spread_hz = static_cast<float>(sum.rms_doppler_spread_hz);
+  L.aod_spread[0] = static_cast<float>(sum.zenith_spread_t);
+  L.aod_spread[1] = static_cast<float>(sum.azimuth_spread_t);
+  L.aoa_spread[0] = static_cast<float>(sum.zenith_spread_r);
+  L.aoa_spread[1] = static_cast<float>(sum.azimuth_spread_r);
+  L.strongest_excess_delay_s = static_cast<float>(sum.strongest_delay_s - res.stats.first_delay_s);
+  L.strongest_aod[0] = static_cast<float>(sum.strongest_theta_t);
+  L.strongest_aod[1] = static_cast<float>(sum.strongest_phi_t);
+  L.strongest_aoa[0] = static_cast<float>(sum.strongest_theta_r);
+  L.strongest_aoa[1] = static_cast<float>(sum.strongest_phi_r);
   return L;
 }
 

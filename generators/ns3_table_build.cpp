@@ -12,6 +12,7 @@
 #include "generators/hdf5_columns.hpp"
 #include "generators/hdf5_file.hpp"
 #include "generators/ns3_table.hpp"
+#include "generators/store_level.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "meshkit/errors.hpp"
 
@@ -65,6 +66,14 @@ class CfrReader {
 
 Ns3TableBuildStats build_ns3_table(const std::string& dataset, const std::filesystem::path& out, Ns3TableHeader header,
                                    std::uint32_t subcarriers_per_band) {
+  {
+    // A table from a file without its frequency responses would silently
+    // fall back to the incoherent gain: refuse it, naming the level to use.
+    hdf5::QuietHdf5 quiet;
+    hdf5::CheckedFile file(dataset);
+    file.open();
+    require_store_level(file, StoreLevel::cfr, "ns3-table");
+  }
   const sinr::ChannelTrace trace = sinr::ChannelTrace::load(dataset);
   const CfrReader cfr(dataset);
   if (cfr.present() && cfr.rows() != trace.link_row(trace.frames()))

@@ -163,7 +163,13 @@ nlohmann::json channel_info(const InfoReader& r) {
       if (f & 2u) ++out_of_range;
     }
   });
-  const hsize_t paths = r.rows("/paths/tau_s");
+  // Files below the paths level store none: their links' path counts say how many the gains sum.
+  const bool paths_stored = r.exists("/paths");
+  const hsize_t paths =
+      paths_stored ? r.rows("/paths/tau_s") : r.num_attr<std::uint64_t>("/", "path_count").value_or(0);
+  info["store"] = r.str_attr("store", "full");
+  info["paths_top_k"] = r.num_attr<std::uint64_t>("/", "paths_top_k").value_or(0);
+  info["paths_stored"] = paths_stored;
   info["links"] = links;
   info["los_counts"] = {{"LOS", los[0]}, {"NLOSV", los[1]}, {"NLOS", los[2]}};
   if (other_class) info["los_counts"]["invalid"] = other_class;
@@ -177,7 +183,7 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["cached_links"] = cached;
   info["out_of_range_links"] = out_of_range;
   info["paths"] = paths;
-  info["interactions"] = r.rows("/interactions/type");
+  info["interactions"] = r.exists("/interactions/type") ? r.rows("/interactions/type") : 0;
   info["objects"] = r.exists("/objects/name") ? r.rows("/objects/name") : 0;
   info["mean_paths_per_link"] = links ? static_cast<double>(paths) / static_cast<double>(links) : 0.0;
   const std::uint64_t in_range = links - std::min<std::uint64_t>(links, out_of_range);
@@ -238,9 +244,17 @@ std::string format_channel_info(const nlohmann::json& info) {
   o << "\n";
   if (info.contains("los_counts_fresnel"))
     o << "Fresnel zone " << class_shares(info["los_counts_fresnel"], links) << "  (0.6 F1)\n";
-  std::snprintf(buf, sizeof buf, "paths         %llu (%.2f per link, %.2f per in-range link)\n",
+  const std::string level = info.value("store", std::string("full"));
+  o << "store         " << level;
+  if (num("paths_top_k") > 0) o << ", the " << num("paths_top_k") << " strongest paths of each link";
+  o << (level == "links"   ? " (link columns and summaries)"
+        : level == "cfr"   ? " (link columns, summaries and frequency responses)"
+        : level == "paths" ? " (+ paths, without interaction points)"
+                           : " (everything: paths with interaction points)")
+    << "\n";
+  std::snprintf(buf, sizeof buf, "paths         %llu (%.2f per link, %.2f per in-range link)%s\n",
                 static_cast<unsigned long long>(num("paths")), real("mean_paths_per_link"),
-                real("mean_paths_per_in_range_link"));
+                real("mean_paths_per_in_range_link"), info.value("paths_stored", true) ? "" : ", not stored");
   o << buf;
   o << "interactions  " << num("interactions") << "\n";
   o << "objects       " << num("objects") << "\n";

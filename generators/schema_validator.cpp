@@ -98,6 +98,10 @@ void Validator::check_attributes(hid_t loc, const std::string& where, const nloh
           if (std::find(allowed.begin(), allowed.end(), v) == allowed.end())
             problem(label + " is \"" + v + "\", expected one of " + allowed.dump());
         }
+        if (name == "store") {
+          store_name_ = v;
+          store_rank_ = level_rank(v);
+        }
         if (name == "schema_version") {
           file_version_ = v;
           const auto major = major_version(v);
@@ -126,9 +130,30 @@ void Validator::check_attributes(hid_t loc, const std::string& where, const nloh
   }
 }
 
+std::optional<std::size_t> Validator::level_rank(const std::string& level) const {
+  for (const auto& a : schema_.at("attributes")) {
+    if (a.at("name") != "store" || !a.contains("one_of")) continue;
+    const auto& levels = a.at("one_of");
+    for (std::size_t i = 0; i < levels.size(); ++i)
+      if (levels[i] == level) return i;
+  }
+  return std::nullopt;
+}
+
+bool Validator::stored(const nlohmann::json& spec, const std::string& p, bool present) {
+  if (!spec.contains("stored_from") || !store_rank_) return true;
+  const auto from = level_rank(spec.at("stored_from").get<std::string>());
+  if (!from || *store_rank_ >= *from) return true;
+  if (present)
+    problem(p + ": present, but the file's store level " + store_name_ + " stores it only from level " +
+            spec.at("stored_from").get<std::string>());
+  return false;
+}
+
 void Validator::check_group(const nlohmann::json& g) {
   const std::string name = g.at("name");
   const std::string gpath = "/" + name;
+  if (!stored(g, gpath, has_link(file_.id(), name))) return;
   if (!has_link(file_.id(), name)) {
     if (!g.value("optional", false)) problem(gpath + ": group missing");
     return;
@@ -146,6 +171,7 @@ void Validator::check_group(const nlohmann::json& g) {
 void Validator::check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann::json& d) {
   const std::string name = d.at("name");
   const std::string p = path_of(g, d);
+  if (!stored(d, p, has_link(gid, name))) return;
   if (!has_link(gid, name)) {
     // Added in a later minor version: files written before it lack it.
     if (d.contains("since") &&

@@ -140,6 +140,17 @@ class Validator {
     return t;
   }
 
+  // Store levels (schemas/README.md): the root attribute `store`'s value as
+  // an index into its spec's `one_of` (the levels in order); a file without
+  // it holds the top level. A group or dataset with `stored_from` is
+  // present exactly at that level and above.
+  std::optional<std::size_t> store_rank_;
+  std::string store_name_;
+  std::optional<std::size_t> level_rank(const std::string& level) const;
+  // Whether a `stored_from` spec is stored at the file's level; a present
+  // object the level excludes is reported.
+  bool stored(const nlohmann::json& spec, const std::string& p, bool present);
+
   void check_group(const nlohmann::json& g);
 
   void check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann::json& d);

@@ -79,6 +79,7 @@ void check_same_run(const Shard& ref, const Shard& s) {
   if (a.seed != b.seed || a.carrier_hz != b.carrier_hz || a.bandwidth_hz != b.bandwidth_hz ||
       a.cfr_subcarriers != b.cfr_subcarriers || a.cfr_subcarrier_spacing_hz != b.cfr_subcarrier_spacing_hz)
     differs("the radio attributes differ");
+  if (a.store != b.store || a.paths_top_k != b.paths_top_k) differs("the store levels differ");
   const auto& na = ref.reader->nodes();
   const auto& nb = s.reader->nodes();
   bool same_nodes = na.size() == nb.size();

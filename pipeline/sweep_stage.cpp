@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdlib>
@@ -14,6 +15,7 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/frame_block.hpp"
+#include "generators/store_level.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"
@@ -231,7 +233,8 @@ class SceneModels {
 // committed with its share of the sweep's statistics.
 class BlockStore {
  public:
-  BlockStore(fs::path parts, const generators::Sweep& sweep) : parts_(std::move(parts)), sweep_(sweep) {}
+  BlockStore(fs::path parts, const generators::Sweep& sweep, const SweepSettings& cfg)
+      : parts_(std::move(parts)), sweep_(sweep), store_(cfg.store), top_k_(cfg.paths_top_k) {}
 
   fs::path bin(std::uint64_t b) const { return parts_ / (block_name(b) + ".bin"); }
   fs::path stats(std::uint64_t b) const { return parts_ / (block_name(b) + ".json"); }
@@ -248,9 +251,15 @@ class BlockStore {
     }
   }
 
-  void append(std::uint64_t b, const generators::FrameRecord& frame) {
+  // A frame reduced to the store level (nothing the dataset drops reaches
+  // the disk); `step_seconds`: the sweep's time on it, tracing included.
+  void append(std::uint64_t b, generators::FrameRecord frame, double step_seconds, double trace_seconds) {
+    const auto t0 = std::chrono::steady_clock::now();
+    generators::reduce_frame(frame, store_, top_k_);
     if (!block_) block_.emplace(bin(b));  // streamed to disk: one frame in memory
     block_->append(frame);
+    block_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    record_seconds_ += std::max(0.0, step_seconds - trace_seconds);
   }
 
   void commit(std::uint64_t b) {
@@ -265,8 +274,11 @@ class BlockStore {
                      {"updates_deferred", s.updates_deferred - before_.updates_deferred},
                      {"rays", s.rays - before_.rays},
                      {"trace_seconds", s.trace_seconds - before_.trace_seconds},
-                     {"resolve_seconds", s.resolve_seconds - before_.resolve_seconds}};
+                     {"resolve_seconds", s.resolve_seconds - before_.resolve_seconds},
+                     {"record_seconds", record_seconds_},
+                     {"block_seconds", block_seconds_}};
     before_ = s;
+    record_seconds_ = block_seconds_ = 0;
     write_file_atomic(stats(b), st.dump() + "\n");
     block_->commit();
     block_.reset();
@@ -281,6 +293,11 @@ class BlockStore {
   const generators::Sweep& sweep_;
   std::optional<generators::FrameBlockWriter> block_;
   generators::SweepStats before_;  // sweep statistics at the start of the block
+  generators::StoreLevel store_;
+  std::uint32_t top_k_;
+  // Time outside tracing in the current block: turning results into records
+  // (the sweep's step less its tracing), and reducing and serialising them.
+  double record_seconds_ = 0, block_seconds_ = 0;
 };
 
 generators::SweepVehicle sweep_vehicle(const FcdVehicle& v, const FcdTypeModel& tm, std::uint32_t node,
@@ -355,7 +372,13 @@ SweepProgress trace_frames(const SweepArgs& args, const SweepSettings& cfg, std:
       const FcdTypeModel* tm = models.resolve(*vp);
       vehicles.push_back(sweep_vehicle(*vp, *tm, nodes.vehicle(*vp, *tm, args), models.at(vp->type)));
     }
-    if (!skipping_block) store.append(block, sweep.step(p.frames, frame.time_s, std::move(vehicles)));
+    if (!skipping_block) {
+      const double traced_before = sweep.stats().trace_seconds;
+      const auto t0 = std::chrono::steady_clock::now();
+      generators::FrameRecord record = sweep.step(p.frames, frame.time_s, std::move(vehicles));
+      const double step = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      store.append(block, std::move(record), step, sweep.stats().trace_seconds - traced_before);
+    }
     ++p.frames;
 
     const auto now = std::chrono::steady_clock::now();
@@ -386,11 +409,13 @@ ShardRecord shard_record(const SweepArgs& args, std::uint64_t block_frames, cons
   return shard;
 }
 
-generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettings& settings,
+generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettings& settings, const SweepSettings& cfg,
                                          const generators::SweepOptions& options, const std::string& shard) {
   const tracer::OfdmGrid* grid = options.cfr ? &*options.cfr : nullptr;
   generators::DatasetHeader header = channel_dataset_header(id.config, id.prov, settings.radio, grid);
   header.shard = shard;
+  header.store = cfg.store;
+  header.paths_top_k = cfg.paths_top_k;
   return header;
 }
 
@@ -398,10 +423,11 @@ generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettin
 json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& header, std::uint64_t last_block,
                       const BlockStore& store, const NodeTable& nodes, const generators::Sweep& sweep) {
   StagedFile staged{fs::path(args.out)};
-  json totals = {{"frames", 0},         {"links", 0},           {"traced_links", 0},
+  json totals = {{"frames", 0},          {"links", 0},           {"traced_links", 0},
                  {"searched_links", 0},  {"recall_broken", 0},   {"vehicle_updates", 0},
                  {"updates_deferred", 0}, {"rays", 0},           {"trace_seconds", 0.0},
-                 {"resolve_seconds", 0.0}};
+                 {"resolve_seconds", 0.0}, {"record_seconds", 0.0}, {"block_seconds", 0.0}};
+  const auto t0 = std::chrono::steady_clock::now();
   {
     generators::DatasetWriter writer(staged.path(), header);
     for (std::uint64_t b = 0; b <= last_block; ++b) {
@@ -411,8 +437,8 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
       std::ifstream in(store.stats(b));
       const json st = json::parse(in);
       for (auto& [k, v] : totals.items()) {
-        if (v.is_number_float()) v = v.get<double>() + st.at(k).get<double>();
-        else v = v.get<std::uint64_t>() + st.at(k).get<std::uint64_t>();
+        if (v.is_number_float()) v = v.get<double>() + st.value(k, 0.0);
+        else v = v.get<std::uint64_t>() + st.value(k, std::uint64_t{0});
       }
     }
     std::vector<std::string> ids;
@@ -420,11 +446,13 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
     writer.finish(nodes.nodes, sweep.object_names(ids));
   }
   staged.commit();
+  // Reading the blocks back, compressing and writing the file.
+  totals["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return totals;
 }
 
 json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgress& p, const ShardRecord& shard,
-                   std::size_t nodes, const generators::SweepOptions& options) {
+                   std::size_t nodes, const SweepSettings& cfg, const generators::SweepOptions& options) {
   const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - p.start).count();
   const auto links = totals["links"].get<std::uint64_t>();
   const auto traced = totals["traced_links"].get<std::uint64_t>();
@@ -441,11 +469,16 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
   summary["bytes"] = bytes;
   summary["bytes_per_link"] = links ? static_cast<double>(bytes) / links : 0.0;
   summary["coherence"] = options.coherence;
+  summary["store"] = generators::store_level_name(cfg.store);
+  summary["paths_top_k"] = cfg.paths_top_k;
   spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, {} of them searched, cache hit "
-               "{:.1f}%) in {:.1f} s ({:.1f} s tracing, {:.1f} s of it re-solving); {} ({:.0f} bytes per pair-frame)",
+               "{:.1f}%) in {:.1f} s ({:.1f} s tracing, {:.1f} s of it re-solving; outside tracing {:.1f} s records, "
+               "{:.1f} s blocks, {:.1f} s writing); {} at level {} ({:.0f} bytes per pair-frame)",
                totals["frames"].get<std::uint64_t>(), p.blocks_resumed, links, traced,
                totals["searched_links"].get<std::uint64_t>(), 100 * summary["cache_hit_ratio"].get<double>(), wall,
-               totals["trace_seconds"].get<double>(), totals["resolve_seconds"].get<double>(), args.out,
+               totals["trace_seconds"].get<double>(), totals["resolve_seconds"].get<double>(),
+               totals["record_seconds"].get<double>(), totals["block_seconds"].get<double>(),
+               totals["write_seconds"].get<double>(), args.out, summary["store"].get<std::string>(),
                summary["bytes_per_link"].get<double>());
   return summary;
 }
@@ -478,7 +511,7 @@ json run_sweep_stage(const SweepArgs& args, const Settings& all, const std::vect
   FcdReader reader(args.fcd, sweep_fcd_filter(cfg));
   SweepSelection selection(cfg, bounds, args.fcd);
   generators::Sweep sweep(scene, settings.tracer, settings.radio, options, nodes.rsus);
-  BlockStore store(parts, sweep);
+  BlockStore store(parts, sweep, cfg);
   const SweepProgress p =
       trace_frames(args, cfg, options.block_frames, reader, selection, models, nodes, sweep, store, t_start);
   const std::uint64_t dropped_outside = selection.dropped_outside();
@@ -486,13 +519,13 @@ json run_sweep_stage(const SweepArgs& args, const Settings& all, const std::vect
 
   const ShardRecord shard = args.shard ? shard_record(args, options.block_frames, p, id.run_key) : ShardRecord{};
   const generators::DatasetHeader header =
-      dataset_header(id, settings, options, args.shard ? shard.to_json().dump() : std::string());
+      dataset_header(id, settings, cfg, options, args.shard ? shard.to_json().dump() : std::string());
   const json totals = assemble_dataset(args, header, p.last_block, store, nodes, sweep);
   fs::remove_all(parts);
   // A merge record next to the file describes an earlier, merged version of it.
   if (!args.shard) fs::remove(args.out + ".merge.json");
 
-  json summary = sweep_summary(args, totals, p, shard, nodes.nodes.size(), options);
+  json summary = sweep_summary(args, totals, p, shard, nodes.nodes.size(), cfg, options);
   summary["dropped_outside"] = dropped_outside;
   return summary;
 }

@@ -6,10 +6,14 @@
         print(ds.frame_count, ds.link_count, ds.times[:5])
         f0 = ds.frame(0)                  # node states and links of frame 0
         hist = ds.pair("veh12", "rsu0")   # one pair over time (ids or node indices, any order)
-        p = ds.paths(hist["link"][0])     # paths of one link: complex gains, delays, angles, interactions
+        p = ds.paths(hist["link"][0])     # paths of one link (store levels paths and full)
         table = ds.links_table()          # every /links column, for bulk work
 
     data = LinkDataset("channels.h5")     # (features, label) per link; a torch Dataset when torch is installed
+
+Files store one of four cumulative levels (`ds.store`): links (every /links column, the per-link
+summaries included), cfr (+ frequency responses), paths (+ paths without interaction points), full (+
+interaction points). Link columns and CFR are the same at every level.
 
 Needs numpy and h5py only (run with /usr/bin/python3 on Debian); torch is optional.
 """
@@ -31,7 +35,11 @@ LINK_COLUMNS = ("frame", "tx", "rx", "los_class", "flags", "blocker_count", "gai
                 "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset",
                 "paths_below_threshold",  # since schema 1.1.0
                 "los_class_fresnel", "fresnel_clearance",  # since schema 1.2.0
-                "vehicle_loss_db")  # since schema 1.3.0
+                "vehicle_loss_db",  # since schema 1.3.0
+                "paths_beyond_top_k", "diffuse_gain_db", "k_factor_db", "rms_doppler_spread_hz",
+                "aod_spread_rad", "aoa_spread_rad", "strongest_excess_delay_s", "strongest_aod",
+                "strongest_aoa")  # since schema 1.4.0 (the last four of them (L, 2): zenith/theta, azimuth/phi)
+STORE_LEVELS = ("links", "cfr", "paths", "full")
 
 
 def _text(value):
@@ -120,8 +128,25 @@ class ChannelDataset:
         return int(self._file["links/tx"].shape[0])
 
     @property
+    def store(self):
+        """Store level: links, cfr, paths or full (files written before schema 1.4.0 are full)."""
+        return _text(self._file.attrs.get("store", "full"))
+
+    @property
+    def paths_top_k(self):
+        """0, or the number of strongest paths each link keeps (levels paths and full)."""
+        return int(self._file.attrs.get("paths_top_k", 0))
+
+    @property
     def path_count(self):
-        return int(self._file["paths/tau_s"].shape[0])
+        """Sum of the links' path counts: the rows of /paths where stored, else the paths the gains sum."""
+        if "path_count" in self._file.attrs:
+            return int(self._file.attrs["path_count"])
+        return int(self._file["paths/tau_s"].shape[0]) if "paths" in self._file else 0
+
+    @property
+    def has_paths(self):
+        return "paths" in self._file
 
     @property
     def node_count(self):
@@ -228,10 +253,14 @@ class ChannelDataset:
     def paths(self, link_index):
         """Paths of one link (row of /links), sorted by delay: dict with a (complex64), tau_s, aod (n, 2),
         aoa (n, 2) (theta, phi in rad), doppler_hz, interaction_count and interactions: a list with, per
-        path, a structured array of (type, object, point)."""
+        path, a structured array of (type, object, point). Points are NaN at store level paths; levels
+        links and cfr hold no paths (ValueError naming the level to sweep with)."""
         f = self._file
         if not 0 <= link_index < self.link_count:
             raise IndexError(f"link {link_index} out of range (L = {self.link_count})")
+        if not self.has_paths:
+            raise ValueError(f"{self.path}: store level {self.store!r} holds no paths (its link columns, summaries "
+                             f"and CFR do): sweep with [sweep] store = \"paths\" or \"full\"")
         p0 = int(f["links/path_offset"][link_index])
         p1 = p0 + int(f["links/path_count"][link_index])
         out = {
@@ -251,7 +280,9 @@ class ChannelDataset:
             i1 = int(offsets[-1] + counts[-1])
             types = f["interactions/type"][i0:i1]
             objects = f["interactions/object"][i0:i1]
-            points = f["interactions/point"][i0:i1]
+            # Level paths stores no points: NaN.
+            points = (f["interactions/point"][i0:i1] if "interactions/point" in f
+                      else np.full((i1 - i0, 3), np.nan, dtype=np.float32))
             for off, cnt in zip(offsets, counts):
                 s = int(off) - i0
                 rec = np.empty(int(cnt), dtype=dtype)

@@ -8,6 +8,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "generators/dataset.hpp"
 #include "generators/sweep.hpp"
 #include "tracer/channel.hpp"
 
@@ -24,6 +25,10 @@ struct SweepSettings {
   int lod = -1;
   std::string exclude_objects;
   generators::SweepOptions options;
+  // What the dataset stores (schemas/README.md, "Store levels"): the
+  // smallest level every stage downstream reads by default.
+  generators::StoreLevel store = generators::StoreLevel::cfr;
+  std::uint32_t paths_top_k = 0;  // paths and full: only each link's k strongest paths (0: all)
   nlohmann::json to_json() const;
 };
 

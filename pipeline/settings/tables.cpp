@@ -201,6 +201,16 @@ const Table<SweepSettings>& sweep_table() {
               },
               [](const std::optional<tracer::OfdmGridSpec>& g) { return json(g ? g->text : ""); }),
           FIELD(cfr), "", "also store each link's frequency response on this OFDM grid (\"\": none)");
+    t.key("store",
+          enumeration<generators::StoreLevel>({{"links", generators::StoreLevel::links},
+                                               {"cfr", generators::StoreLevel::cfr},
+                                               {"paths", generators::StoreLevel::paths},
+                                               {"full", generators::StoreLevel::full}}),
+          FIELD(store), "",
+          "what the dataset stores: links (link columns and summaries), cfr (+ frequency responses), paths (+ paths "
+          "without interaction points), full (+ interaction points)");
+    t.key("paths_top_k", integer<std::uint32_t>(), FIELD(paths_top_k), "",
+          "store = paths or full: each link keeps only its this many strongest paths (0: all)");
     t.key("lod", integer<int>(at_least(-1)), FIELD(lod), "", "vehicle level of detail (-1: each entry's default)");
     t.key("exclude_objects", text(), FIELD(exclude_objects), "",
           "regex on static object ids to leave out (Sionna's placeholder cars: \"car_\")");

@@ -74,8 +74,10 @@ std::string sweep_args(const fs::path& config) {
 
 // A coherent sweep that re-solves every pair it can (frame-to-frame
 // coherence restarts with each block, the unit shards share).
+// Store level paths with each link's 4 strongest paths: merges and resumes keep it.
 void write_sweep_config(const fs::path& p, int max_depth = 2) {
   write_text(p, "[sweep]\nbegin_s = 25\nend_s = 27.95\nblock_frames = 5\ncoherence = true\n"
+                "store = \"paths\"\npaths_top_k = 4\n"
                 "coherence_volatile_share = 1\ncoherence_direct_share = 0\ncoherence_clear_zone_only = false\n"
                 "[tracer]\nrays_per_source = 1024\nmax_depth = " +
                     std::to_string(max_depth) + "\n");
@@ -144,7 +146,7 @@ TEST(CliShard, RunShardsMergeIntoTheSingleProcessDatasetByteForByte) {
   EXPECT_LT(fs::file_size(c.out / "dataset.h5"), fs::file_size(c.reference) / 4);
   r = run_command("cd / && h5diff " + (c.out / "dataset.h5").string() + " " + c.reference.string());
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  r = run_command("h5dump -p -H -d /paths/a " + (c.out / "dataset.h5").string());
+  r = run_command("h5dump -p -H -d /links/gain_incoherent_db " + (c.out / "dataset.h5").string());
   EXPECT_NE(r.output.find("shards/dataset.3-of-4.h5"), std::string::npos) << r.output;
   EXPECT_EQ(run_raysweep("validate " + (c.out / "dataset.h5").string()).exit_code, 0);
 }
@@ -215,6 +217,14 @@ TEST(CliShard, SweepShardsMergeByteForByteAndTheMergeRefusesBadSets) {
   EXPECT_TRUE(same_bytes(dir / "a/m.h5", dir / "b/m.h5"));
   r = run_command("h5diff " + (dir / "a/m.h5").string() + " " + (dir / "b/m.h5").string());
   EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(str_attr(dir / "b/m.h5", "store"), "paths");
+  // The virtual merge at this level reads the same values.
+  fs::remove(dir / "b/m.h5");
+  r = run_command("cd " + (dir / "b").string() + " && " + RAYSWEEP_BINARY + " merge s0.h5 s1.h5 --virtual --out m.h5");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_command("cd / && h5diff " + (dir / "b/m.h5").string() + " " + (dir / "a/m.h5").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(run_raysweep("validate " + (dir / "b/m.h5").string()).exit_code, 0);
 }
 
 TEST(CliShard, AnInterruptedShardResumesItsOwnBlocks) {

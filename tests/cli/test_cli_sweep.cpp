@@ -8,6 +8,8 @@
 #include <unistd.h>
 #include <zlib.h>
 
+#include <sstream>
+
 #include "test_util.hpp"
 
 using namespace raysweep::test;
@@ -125,6 +127,71 @@ TEST(CliSweep, ResumeAfterKillEqualsUninterruptedAndThreadsDoNotMatter) {
   r = run_command("cd " + (dir / "b").string() + " && " + RAYSWEEP_BINARY + " " + cmd + " --resume");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("other inputs or settings"), std::string::npos) << r.output;
+}
+
+namespace {
+
+// Two HDF5 files hold the same data: every top-level group alike (h5diff,
+// attributes of the groups' datasets included); the root attributes, which
+// carry the provenance, are left out.
+void expect_same_data(const fs::path& a, const fs::path& b) {
+  const auto groups = run_command("h5ls " + a.string() + " | awk '$2 == \"Group\" {print $1}'");
+  ASSERT_EQ(groups.exit_code, 0) << groups.output;
+  int compared = 0;
+  std::istringstream in(groups.output);
+  for (std::string g; std::getline(in, g);) {
+    const auto r = run_command("h5diff " + a.string() + " " + b.string() + " /" + g + " /" + g);
+    EXPECT_EQ(r.exit_code, 0) << a << " /" << g << "\n" << r.output;
+    ++compared;
+  }
+  EXPECT_GT(compared, 2) << groups.output;
+}
+
+}  // namespace
+
+// The default store level (cfr) against full: the same link columns and
+// CFR, and the same SINR outcomes and ns-3 table from either; a links-level
+// file is refused by ns3-table, which names the level and writes nothing.
+TEST(CliSweep, StoreLevelsFeedTheSameSinrAndNs3Tables) {
+  auto dir = scratch_dir("sweep_levels");
+  const std::string base = "begin_s = 30\nend_s = 31.95\nblock_frames = 8\ncfr = \"80211p\"\n";
+  for (const std::string level : {"default", "full", "links"}) {
+    write_config(dir / (level + ".toml"), base + (level == "default" ? "" : "store = \"" + level + "\""));
+    auto r = run_raysweep(sweep_args(dir / (level + ".toml")) + " --out " + (dir / (level + ".h5")).string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    EXPECT_NE(r.output.find(" at level " + (level == "default" ? std::string("cfr") : level)), std::string::npos)
+        << r.output;
+    EXPECT_EQ(run_raysweep("validate " + (dir / (level + ".h5")).string()).exit_code, 0) << level;
+  }
+  const fs::path cfr = dir / "default.h5", full = dir / "full.h5", links = dir / "links.h5";
+  EXPECT_LT(fs::file_size(cfr), fs::file_size(full) / 2);
+  for (const char* g : {"/links", "/cfr", "/frames", "/node_states"}) {
+    const auto r = run_command("h5diff --exclude-path /path_offset " + cfr.string() + " " + full.string() + " " +
+                               g + " " + g);
+    EXPECT_EQ(r.exit_code, 0) << g << "\n" << r.output;
+  }
+  write_text(dir / "s.toml", "[sinr]\nseed = 7\nnr_fraction = 0.5\n");
+  for (const fs::path& ds : {cfr, full}) {
+    const std::string stem = ds.stem().string();
+    auto r = run_raysweep("-q sinr --channels " + ds.string() + " --out " + (dir / (stem + "_sinr.h5")).string() +
+                          " --config " + (dir / "s.toml").string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+    r = run_raysweep("-q ns3-table --channels " + ds.string() + " --out " + (dir / (stem + "_ns3.h5")).string());
+    ASSERT_EQ(r.exit_code, 0) << r.output;
+  }
+  expect_same_data(dir / "default_sinr.h5", dir / "full_sinr.h5");
+  expect_same_data(dir / "default_ns3.h5", dir / "full_ns3.h5");
+  // The links level has no frequency responses: ns3-table refuses it.
+  const auto r = run_raysweep("ns3-table --channels " + links.string() + " --out " + (dir / "links_ns3.h5").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("stores level links but ns3-table reads level cfr"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--set sweep.store=cfr"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(dir / "links_ns3.h5"));
+  // sinr reads only link columns: any level will do.
+  EXPECT_EQ(run_raysweep("-q sinr --channels " + links.string() + " --out " + (dir / "links_sinr.h5").string() +
+                         " --config " + (dir / "s.toml").string())
+                .exit_code,
+            0);
 }
 
 TEST(CliSweep, BadInputNamesFileAndLineAndWritesNothing) {

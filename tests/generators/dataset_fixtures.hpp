@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "generators/dataset.hpp"
+#include "generators/dataset_writer.hpp"
 #include "test_util.hpp"
 
 namespace raysweep::generators::fixtures {
@@ -61,6 +62,15 @@ struct Builder {
     l.los_class_fresnel = static_cast<std::uint8_t>(std::max<int>(los, li % 3));
     l.fresnel_clearance = 1.0f - 0.37f * static_cast<float>(li);
     l.vehicle_loss_db = 2.5f * static_cast<float>(li % 4);
+    // Summaries: any values (the writer stores them as given).
+    l.diffuse_gain_db = li % 2 ? -70.5f - static_cast<float>(li) : kNoGain;
+    l.k_factor_db = path_objects.size() == 1 ? std::numeric_limits<float>::infinity() : 3.25f * static_cast<float>(li);
+    l.rms_doppler_spread_hz = 1.5f * static_cast<float>(li);
+    l.aod_spread[0] = 0.01f * static_cast<float>(li), l.aod_spread[1] = 0.02f * static_cast<float>(li);
+    l.aoa_spread[0] = 0.03f * static_cast<float>(li), l.aoa_spread[1] = 0.04f * static_cast<float>(li);
+    l.strongest_excess_delay_s = 1e-8f * static_cast<float>(li % 3);
+    l.strongest_aod[0] = 1.25f, l.strongest_aod[1] = -0.5f * static_cast<float>(li);
+    l.strongest_aoa[0] = 1.75f, l.strongest_aoa[1] = 0.5f * static_cast<float>(li);
     if (path_objects.empty()) {
       l.gain_coherent_db = kNoGain;
       l.gain_incoherent_db = kNoGain;
@@ -113,6 +123,39 @@ struct Builder {
     return out;
   }
 };
+
+// The node and object tables and the header of the records above.
+inline std::vector<NodeInfo> test_nodes() {
+  std::vector<NodeInfo> n(3);
+  n[0].id = "rsu0";
+  n[0].kind = NodeKind::rsu;
+  n[1].id = "veh.a";
+  n[1].vclass = "passenger";
+  n[1].vtype = "DEFAULT_VEHTYPE";
+  n[1].length_m = 4.5f, n[1].width_m = 1.8f, n[1].height_m = 1.5f;
+  n[2].id = "veh.b";
+  n[2].vclass = "truck";
+  n[2].vtype = "lorry";
+  n[2].length_m = 12.f, n[2].width_m = 2.5f, n[2].height_m = 3.75f;
+  return n;
+}
+
+inline std::vector<std::string> test_objects() { return {"building/1", "building/2", "ground", "rsu0", "veh.a", "veh.b"}; }
+
+inline DatasetHeader test_header() {
+  DatasetHeader h;
+  h.raysweep_version = "0.1.0-test";
+  h.git_hash = "0123456789ab";
+  h.config = {{"sweep", {{"step_s", 0.1}}}};
+  h.inputs = {{"fcd", {{"path", "fcd.xml"}, {"sha256", "ab"}}}};
+  h.provenance = {{"command", "raysweep sweep"}};
+  h.seed = 42;
+  h.carrier_hz = 5.9e9;
+  h.bandwidth_hz = 10e6;
+  h.cfr_subcarriers = kK;
+  h.cfr_subcarrier_spacing_hz = 156250;
+  return h;
+}
 
 inline void write_bytes(const std::filesystem::path& p, const std::string& bytes) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);

@@ -44,38 +44,6 @@ using raysweep::test::source_dir;
 
 namespace {
 
-std::vector<NodeInfo> test_nodes() {
-  std::vector<NodeInfo> n(3);
-  n[0].id = "rsu0";
-  n[0].kind = NodeKind::rsu;
-  n[1].id = "veh.a";
-  n[1].vclass = "passenger";
-  n[1].vtype = "DEFAULT_VEHTYPE";
-  n[1].length_m = 4.5f, n[1].width_m = 1.8f, n[1].height_m = 1.5f;
-  n[2].id = "veh.b";
-  n[2].vclass = "truck";
-  n[2].vtype = "lorry";
-  n[2].length_m = 12.f, n[2].width_m = 2.5f, n[2].height_m = 3.75f;
-  return n;
-}
-
-std::vector<std::string> test_objects() { return {"building/1", "building/2", "ground", "rsu0", "veh.a", "veh.b"}; }
-
-DatasetHeader test_header() {
-  DatasetHeader h;
-  h.raysweep_version = "0.1.0-test";
-  h.git_hash = "0123456789ab";
-  h.config = {{"sweep", {{"step_s", 0.1}}}};
-  h.inputs = {{"fcd", {{"path", "fcd.xml"}, {"sha256", "ab"}}}};
-  h.provenance = {{"command", "raysweep sweep"}};
-  h.seed = 42;
-  h.carrier_hz = 5.9e9;
-  h.bandwidth_hz = 10e6;
-  h.cfr_subcarriers = kK;
-  h.cfr_subcarrier_spacing_hz = 156250;
-  return h;
-}
-
 void write_test_dataset(const fs::path& file, bool finish = true) {
   Builder b;
   const auto frames = b.frames();
@@ -156,7 +124,9 @@ TEST(Dataset, RoundTripEveryField) {
 
   // Root attributes.
   EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
-  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.3.0");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.4.0");
+  EXPECT_EQ(str_attr(file, "/", "store"), "full");
+  EXPECT_EQ(num_attr<std::uint32_t>(file, "/", "paths_top_k", H5T_NATIVE_UINT32), 0u);
   EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
   EXPECT_EQ(str_attr(file, "/", "git_hash"), "0123456789ab");
   EXPECT_EQ(nlohmann::json::parse(str_attr(file, "/", "config")), test_header().config);
@@ -230,6 +200,16 @@ TEST(Dataset, RoundTripEveryField) {
   const auto zone = read_ds<std::uint8_t>(file, "/links/los_class_fresnel", H5T_NATIVE_UINT8);
   const auto clearance = read_ds<float>(file, "/links/fresnel_clearance", H5T_NATIVE_FLOAT);
   const auto vehicle_loss = read_ds<float>(file, "/links/vehicle_loss_db", H5T_NATIVE_FLOAT);
+  const auto beyond = read_ds<std::uint32_t>(file, "/links/paths_beyond_top_k", H5T_NATIVE_UINT32);
+  const auto diffuse = read_ds<float>(file, "/links/diffuse_gain_db", H5T_NATIVE_FLOAT);
+  const auto k_factor = read_ds<float>(file, "/links/k_factor_db", H5T_NATIVE_FLOAT);
+  const auto doppler_spread = read_ds<float>(file, "/links/rms_doppler_spread_hz", H5T_NATIVE_FLOAT);
+  const auto aod_spread = read_ds<float>(file, "/links/aod_spread_rad", H5T_NATIVE_FLOAT);
+  const auto aoa_spread = read_ds<float>(file, "/links/aoa_spread_rad", H5T_NATIVE_FLOAT);
+  const auto excess = read_ds<float>(file, "/links/strongest_excess_delay_s", H5T_NATIVE_FLOAT);
+  const auto s_aod = read_ds<float>(file, "/links/strongest_aod", H5T_NATIVE_FLOAT);
+  const auto s_aoa = read_ds<float>(file, "/links/strongest_aoa", H5T_NATIVE_FLOAT, &dims);
+  EXPECT_EQ(dims, (std::vector<hsize_t>{6, 2}));
   ASSERT_EQ(tx.size(), 6u);
   EXPECT_EQ(frame, x.link_frame);
   EXPECT_EQ(frame, (std::vector<std::uint32_t>{0, 0, 0, 1, 1, 2}));
@@ -252,6 +232,17 @@ TEST(Dataset, RoundTripEveryField) {
     EXPECT_EQ(zone[i], l.los_class_fresnel);
     EXPECT_EQ(clearance[i], l.fresnel_clearance);
     EXPECT_EQ(vehicle_loss[i], l.vehicle_loss_db);
+    EXPECT_EQ(beyond[i], 0u);
+    EXPECT_EQ(diffuse[i], l.diffuse_gain_db);
+    EXPECT_EQ(k_factor[i], l.k_factor_db);
+    EXPECT_EQ(doppler_spread[i], l.rms_doppler_spread_hz);
+    EXPECT_EQ(excess[i], l.strongest_excess_delay_s);
+    for (int k = 0; k < 2; ++k) {
+      EXPECT_EQ(aod_spread[2 * i + k], l.aod_spread[k]);
+      EXPECT_EQ(aoa_spread[2 * i + k], l.aoa_spread[k]);
+      EXPECT_EQ(s_aod[2 * i + k], l.strongest_aod[k]);
+      EXPECT_EQ(s_aoa[2 * i + k], l.strongest_aoa[k]);
+    }
   }
   EXPECT_TRUE(std::isinf(gc[2]) && gc[2] < 0);
   EXPECT_EQ(flags[2], kLinkOutOfRange);
@@ -329,7 +320,8 @@ TEST(Dataset, RoundTripEveryField) {
   EXPECT_TRUE(problems.empty()) << joined(problems);
 
   const auto info = dataset_info(file.string());
-  EXPECT_EQ(info["schema_version"], "1.3.0");
+  EXPECT_EQ(info["schema_version"], "1.4.0");
+  EXPECT_EQ(info["store"], "full");
   EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
   EXPECT_EQ(info["frames"], 3);
   EXPECT_EQ(info["time_start_s"], 0.0);

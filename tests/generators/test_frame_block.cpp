@@ -71,6 +71,17 @@ void expect_same(const std::vector<FrameRecord>& a, const std::vector<FrameRecor
       EXPECT_EQ(p.los_class_fresnel, q.los_class_fresnel);
       EXPECT_EQ(bits(p.fresnel_clearance), bits(q.fresnel_clearance));
       EXPECT_EQ(bits(p.vehicle_loss_db), bits(q.vehicle_loss_db));
+      EXPECT_EQ(p.paths_beyond_top_k, q.paths_beyond_top_k);
+      EXPECT_EQ(bits(p.diffuse_gain_db), bits(q.diffuse_gain_db));
+      EXPECT_EQ(bits(p.k_factor_db), bits(q.k_factor_db));
+      EXPECT_EQ(bits(p.rms_doppler_spread_hz), bits(q.rms_doppler_spread_hz));
+      for (int k = 0; k < 2; ++k) {
+        EXPECT_EQ(bits(p.aod_spread[k]), bits(q.aod_spread[k]));
+        EXPECT_EQ(bits(p.aoa_spread[k]), bits(q.aoa_spread[k]));
+        EXPECT_EQ(bits(p.strongest_aod[k]), bits(q.strongest_aod[k]));
+        EXPECT_EQ(bits(p.strongest_aoa[k]), bits(q.strongest_aoa[k]));
+      }
+      EXPECT_EQ(bits(p.strongest_excess_delay_s), bits(q.strongest_excess_delay_s));
     }
     ASSERT_EQ(x.paths.size(), y.paths.size());
     for (std::size_t i = 0; i < x.paths.size(); ++i) {
@@ -119,7 +130,7 @@ TEST(FrameBlock, RoundTripIsExact) {
   write_frame_block(p, frames);
   EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
   const std::string bytes = read_bytes(p);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK5\n"));
   const auto back = read_frame_block(p);
   expect_same(frames, back);
   EXPECT_TRUE(std::isnan(back[1].links[0].rms_delay_spread_s));
@@ -163,7 +174,7 @@ TEST(FrameBlock, StreamedBlockMatchesLayoutAndReadsBackInChunks) {
   EXPECT_FALSE(fs::exists(p.string() + ".tmp"));
   const std::string bytes = read_bytes(p);
   ASSERT_GT(bytes.size(), 2u << 20);
-  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK4\n"));
+  EXPECT_EQ(bytes.substr(0, 8), std::string("RSWBLK5\n"));
   auto le64 = [&](std::size_t at) {
     std::uint64_t v = 0;
     for (int i = 0; i < 8; ++i) v |= std::uint64_t(static_cast<unsigned char>(bytes[at + i])) << (8 * i);

@@ -1,4 +1,4 @@
-// Path statistics, OFDM grids, frequency and impulse responses against
+// Path statistics and summaries, OFDM grids, frequency and impulse responses against
 // hand-computed values and analytic properties (notch spacing, Parseval,
 // sinc energy, DTFT of the taps).
 #include <gtest/gtest.h>
@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "tracer/channel.hpp"
+#include "tracer/channel_summary.hpp"
 #include "tracer/path.hpp"
 
 using namespace raysweep::tracer;
@@ -275,4 +276,72 @@ TEST(ImpulseResponse, TapsDtftMatchesFrequencyResponse) {
     const cd est = T * B * std::polar(1.0, -2 * kPi * f * ir.t0_s) * dtft;
     EXPECT_LT(std::abs(est - h[k]) / std::abs(h[k]), 1e-2) << "k=" << k << " f=" << f;
   }
+}
+
+// --- Channel summaries (tracer/channel_summary.hpp) ----------------------------
+
+namespace {
+Path angled(double amplitude, double tau, double theta, double phi, double doppler) {
+  Path p = make_path(cd(amplitude, 0), tau);
+  p.theta_t = p.theta_r = theta;
+  p.phi_t = phi;
+  p.phi_r = -phi;
+  p.doppler_hz = doppler;
+  return p;
+}
+}  // namespace
+
+TEST(ChannelSummary, HandComputedTwoPaths) {
+  // Powers 4 (at 2 us) and 1 (at 1 us, the first): K = 4; the strongest is the later one.
+  const std::vector<Path> paths = {angled(1, 1e-6, 1.2, -0.3, -100), angled(2, 2e-6, 1.0, 0.3, 100)};
+  const ChannelSummary s = channel_summary(paths);
+  EXPECT_DOUBLE_EQ(s.k_factor, 4.0);
+  EXPECT_EQ(s.strongest_delay_s, 2e-6);
+  EXPECT_EQ(s.strongest_theta_t, 1.0);
+  EXPECT_EQ(s.strongest_phi_t, 0.3);
+  EXPECT_EQ(s.strongest_phi_r, -0.3);
+  // Doppler: mean (400 - 100) / 5 = 60, variance (4 * 40^2 + 160^2) / 5 = 6400.
+  EXPECT_NEAR(s.rms_doppler_spread_hz, 80.0, 1e-9);
+  // Zenith: weights 4 at 1.0 and 1 at 1.2: mean 1.04, variance (4 * 0.04^2 + 0.16^2) / 5 = 0.0064.
+  EXPECT_NEAR(s.zenith_spread_t, 0.08, 1e-12);
+  EXPECT_NEAR(s.zenith_spread_r, 0.08, 1e-12);
+  // Azimuth: |4 e^{0.3j} + e^{-0.3j}| / 5 = sqrt(16 + 1 + 8 cos 0.6) / 5.
+  const double r = std::sqrt(17 + 8 * std::cos(0.6)) / 5;
+  EXPECT_NEAR(s.azimuth_spread_t, std::sqrt(-2 * std::log(r)), 1e-12);
+  EXPECT_NEAR(s.azimuth_spread_r, s.azimuth_spread_t, 1e-12);
+  EXPECT_EQ(s.diffuse_gain, 0.0);
+}
+
+TEST(ChannelSummary, AzimuthSpreadIgnoresTheWrap) {
+  // Equal powers just either side of phi = pi: the same spread as either side of 0
+  // (sqrt(-2 ln cos 0.1) ~ 0.1), where an RMS of the raw angles would give ~pi.
+  const std::vector<Path> near_pi = {angled(1, 1e-6, 1, kPi - 0.1, 0), angled(1, 2e-6, 1, -kPi + 0.1, 0)};
+  const std::vector<Path> near_0 = {angled(1, 1e-6, 1, 0.1, 0), angled(1, 2e-6, 1, -0.1, 0)};
+  const double expect = std::sqrt(-2 * std::log(std::cos(0.1)));
+  EXPECT_NEAR(channel_summary(near_pi).azimuth_spread_t, expect, 1e-9);
+  EXPECT_NEAR(channel_summary(near_0).azimuth_spread_t, expect, 1e-9);
+  EXPECT_LT(expect, 0.101);
+  // Equal powers: the first of them is the strongest, and K = 1.
+  EXPECT_EQ(channel_summary(near_0).strongest_delay_s, 1e-6);
+  EXPECT_DOUBLE_EQ(channel_summary(near_0).k_factor, 1.0);
+}
+
+TEST(ChannelSummary, DiffusePowerAndDegenerateSets) {
+  Path diffuse = angled(3, 5e-6, 1, 0, 0);
+  diffuse.interactions.push_back({InteractionType::specular, 0, 0, {0, 0, 0}});
+  diffuse.interactions.push_back({InteractionType::diffuse, 1, 0, {1, 0, 0}});
+  Path specular = angled(1, 4e-6, 1, 0, 0);
+  specular.interactions.push_back({InteractionType::specular, 0, 0, {0, 0, 0}});
+  EXPECT_DOUBLE_EQ(channel_summary({specular, diffuse}).diffuse_gain, 9.0);
+  // One path: K infinite, no spread; none: all zero.
+  const ChannelSummary one = channel_summary({specular});
+  EXPECT_TRUE(std::isinf(one.k_factor) && one.k_factor > 0);
+  EXPECT_EQ(one.azimuth_spread_t, 0.0);
+  EXPECT_EQ(one.rms_doppler_spread_hz, 0.0);
+  const ChannelSummary none = channel_summary({});
+  EXPECT_EQ(none.k_factor, 0.0);
+  EXPECT_EQ(none.strongest_delay_s, 0.0);
+  // Opposite azimuths of equal power cancel: the circular spread grows without bound
+  // (rounding leaves a resultant of ~1e-16, sqrt(-2 ln 1e-16) ~ 8.6).
+  EXPECT_GT(channel_summary({angled(1, 1e-6, 1, 0.5, 0), angled(1, 2e-6, 1, 0.5 - kPi, 0)}).azimuth_spread_t, 5.0);
 }
