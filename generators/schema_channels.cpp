@@ -256,7 +256,7 @@ std::string format_channel_info(const nlohmann::json& info) {
                 static_cast<unsigned long long>(num("paths")), real("mean_paths_per_link"),
                 real("mean_paths_per_in_range_link"), info.value("paths_stored", true) ? "" : ", not stored");
   o << buf;
-  o << "interactions  " << num("interactions") << "\n";
+  o << "interactions  " << (info.value("paths_stored", true) ? std::to_string(num("interactions")) : "not stored") << "\n";
   o << "objects       " << num("objects") << "\n";
   std::snprintf(buf, sizeof buf, "carrier       %.6g GHz, bandwidth %.6g MHz\n", real("carrier_hz") / 1e9,
                 real("bandwidth_hz") / 1e6);

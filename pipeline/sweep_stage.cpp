@@ -491,7 +491,9 @@ json run_sweep_stage(const SweepArgs& args, const Settings& all, const std::vect
   const TraceSettings& settings = all.trace;
   const SweepSettings& cfg = all.sweep;
   generators::SweepOptions options = cfg.options;
-  if (cfg.cfr) options.cfr = tracer::ofdm_grid(*cfg.cfr, settings.radio.frequency_hz);
+  // A links-level dataset stores no frequency responses: none computed.
+  if (cfg.cfr && cfg.store >= generators::StoreLevel::cfr)
+    options.cfr = tracer::ofdm_grid(*cfg.cfr, settings.radio.frequency_hz);
   if (!fs::exists(args.fcd)) throw std::invalid_argument(args.fcd + ": FCD file not found");
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");

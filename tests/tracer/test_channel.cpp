@@ -278,6 +278,25 @@ TEST(ImpulseResponse, TapsDtftMatchesFrequencyResponse) {
   }
 }
 
+// The response by its definition, one phasor per path and subcarrier.
+TEST(Channel, FrequencyResponseMatchesTheDirectSumOnWideGridsAndLongDelays) {
+  std::vector<Path> paths;
+  for (int i = 0; i < 40; ++i)
+    paths.push_back(make_path(std::polar(1e-4 / (1 + i), 0.37 * i), 2e-7 + 2.5e-7 * i));  // up to 10 us
+  for (const OfdmGrid& g : {ofdm_80211p(), ofdm_nr(1, 273), ofdm_nr(0, 1)}) {
+    const auto h = frequency_response(paths, g);
+    ASSERT_EQ(h.size(), static_cast<std::size_t>(g.n_subcarriers));
+    double worst = 0, scale = 0;
+    for (int k = 0; k < g.n_subcarriers; ++k) {
+      cd direct{0, 0};
+      for (const Path& p : paths) direct += p.a * std::polar(1.0, -2 * kPi * g.offset_hz(k) * p.tau_s);
+      worst = std::max(worst, std::abs(h[k] - direct));
+      scale = std::max(scale, std::abs(direct));
+    }
+    EXPECT_LT(worst, 1e-11 * scale) << g.n_subcarriers << " subcarriers";
+  }
+}
+
 // --- Channel summaries (tracer/channel_summary.hpp) ----------------------------
 
 namespace {
