@@ -11,6 +11,11 @@
 
     data = LinkDataset("channels.h5")     # (features, label) per link; a torch Dataset when torch is installed
 
+    with open_dataset("channels.h5") as ds:  # splits that do not leak: time windows 1 s apart
+        splits = time_splits(ds.times, (0.7, 0.15, 0.15), gap_s=1.0)
+    train = LinkDataset("channels.h5", frames=splits["train"])
+    for train_cities, test_city in city_rotations(["demo", "ring", "badhersfeld"]): ...
+
 Files store one of four cumulative levels (`ds.store`): links (every /links column, the per-link
 summaries included), cfr (+ frequency responses), paths (+ paths without interaction points), full (+
 interaction points). Link columns and CFR are the same at every level.
@@ -307,6 +312,17 @@ class ChannelDataset:
         k = int(g.attrs["subcarriers"])
         return float(g.attrs["carrier_hz"]) + (np.arange(k) - k // 2) * float(g.attrs["subcarrier_spacing_hz"])
 
+    def links_of_frames(self, frames):
+        """Rows of /links (int64, ascending) of the given frame indices."""
+        frames = np.unique(np.asarray(frames, dtype=np.int64))
+        if frames.size and (frames[0] < 0 or frames[-1] >= self.frame_count):
+            raise IndexError(f"frames out of range (F = {self.frame_count})")
+        off = self._column("frames/link_offset").astype(np.int64)[frames]
+        cnt = self._column("frames/link_count").astype(np.int64)[frames]
+        if not frames.size:
+            return np.empty(0, dtype=np.int64)
+        return np.concatenate([np.arange(o, o + c, dtype=np.int64) for o, c in zip(off, cnt)])
+
     # -- geometry --------------------------------------------------------------------------
     def link_node_states(self):
         """For every link, the rows of /node_states holding its tx and rx state in the link's frame:
@@ -342,6 +358,48 @@ def open_dataset(path):
     return ChannelDataset(path)
 
 
+# --- Splits -----------------------------------------------------------------------------------
+
+def time_splits(times, fractions=(0.7, 0.15, 0.15), gap_s=1.0, names=("train", "val", "test")):
+    """Frames split into contiguous time windows, in time order, at least gap_s seconds apart.
+
+    The links of one frame are correlated and frames 0.1 s apart are nearly the same channel, so a
+    split over shuffled links or frames measures memory, not generalisation. Window i takes the
+    share fractions[i] of the sweep's time left after the gaps; frames inside a gap belong to no
+    split, so the last frame of a window and the first of the next are at least gap_s apart, and no
+    frame is in two splits. `times`: the frame times (ChannelDataset.times). Returns
+    {name: frame indices (int64, ascending)}; ValueError when the sweep is too short for the gaps.
+    """
+    t = np.asarray(times, dtype=np.float64)
+    if len(fractions) != len(names) or not fractions or min(fractions) <= 0:
+        raise ValueError("time_splits: one positive fraction per name")
+    if gap_s < 0:
+        raise ValueError("time_splits: gap_s must not be negative")
+    if t.size == 0:
+        return {n: np.empty(0, dtype=np.int64) for n in names}
+    t0, t1 = float(t.min()), float(t.max())
+    usable = (t1 - t0) - gap_s * (len(names) - 1)
+    if usable <= 0:
+        raise ValueError(f"time_splits: {t1 - t0:.3f} s of frames cannot hold {len(names)} windows "
+                         f"{gap_s} s apart")
+    share = np.asarray(fractions, dtype=np.float64) / float(np.sum(fractions))
+    out, start = {}, t0
+    for i, name in enumerate(names):
+        last = i == len(names) - 1
+        end = t1 if last else start + share[i] * usable
+        inside = (t >= start) & ((t <= end) if last else (t < end))
+        out[name] = np.nonzero(inside)[0].astype(np.int64)
+        start = end + gap_s
+    return out
+
+
+def city_rotations(cities):
+    """Leave-one-city-out: for each city, (the other cities, that city), for training on the others
+    and testing on the one held out."""
+    cities = list(cities)
+    return [([c for c in cities if c != held], held) for held in cities]
+
+
 # --- PyTorch-style link dataset -----------------------------------------------------------------
 
 try:  # torch is optional
@@ -365,7 +423,8 @@ class LinkDataset(_DatasetBase):
       tx_length_m, tx_width_m, tx_height_m, rx_length_m, rx_width_m, rx_height_m   vehicle dimensions
       blocker_count                        objects blocking the direct ray (derived from tracing: leaks the label)
     label: any /links column (default los_class, 0 LOS / 1 NLOSV / 2 NLOS), int64 for integer columns,
-    float32 otherwise. include_out_of_range=False drops links flagged out of range.
+    float32 otherwise. include_out_of_range=False drops links flagged out of range. frames: only the
+    links of these frame indices (a split of time_splits), else every link.
 
     With torch installed this is a torch.utils.data.Dataset returning tensors; otherwise numpy arrays.
     """
@@ -377,7 +436,8 @@ class LinkDataset(_DatasetBase):
     DEFAULT_FEATURES = ("tx_x", "tx_y", "tx_z", "rx_x", "rx_y", "rx_z", "distance_m", "tx_speed", "rx_speed",
                         "tx_kind", "rx_kind", "tx_vclass", "rx_vclass")
 
-    def __init__(self, path, features=DEFAULT_FEATURES, label="los_class", include_out_of_range=True):
+    def __init__(self, path, features=DEFAULT_FEATURES, label="los_class", include_out_of_range=True,
+                 frames=None):
         unknown = [f for f in features if f not in self.ALL_FEATURES]
         if unknown:
             raise ValueError(f"unknown features {unknown}; available: {list(self.ALL_FEATURES)}")
@@ -412,6 +472,10 @@ class LinkDataset(_DatasetBase):
             keep = np.ones(len(tx), dtype=bool)
             if not include_out_of_range:
                 keep = (ds._column("links/flags") & FLAG_OUT_OF_RANGE) == 0
+            if frames is not None:
+                chosen = np.zeros(len(tx), dtype=bool)
+                chosen[ds.links_of_frames(frames)] = True
+                keep &= chosen
         self.link_index = np.nonzero(keep)[0]
         n = len(self.link_index)
         self.features = np.empty((n, len(self.feature_names)), dtype=np.float32)

@@ -768,3 +768,14 @@ TEST(Dataset, PythonReader) {
   EXPECT_GT(fs::file_size(png), 1000u);
   EXPECT_EQ(read_bytes(png).substr(1, 3), "PNG");
 }
+
+// Splits for training (python/raysweep_dataset.py): time windows that share no
+// frame and lie at least the gap apart; a split's links.
+TEST(Dataset, PythonSplitsShareNoFrameAndKeepTheGap) {
+  const fs::path dir = tmp_dir("python_splits");
+  const fs::path file = dir / "channels.h5";
+  write_test_dataset(file);
+  const auto r = run_command("PYTHONPATH='" + (source_dir() / "python").string() + "' /usr/bin/python3 '" +
+                             (source_dir() / "tests/python/test_splits.py").string() + "' '" + file.string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}

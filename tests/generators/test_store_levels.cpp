@@ -45,37 +45,6 @@ fs::path write_level(const fs::path& dir, StoreLevel level, std::uint32_t top_k 
   return file;
 }
 
-template <class T>
-auto bits(T v) {
-  return std::bit_cast<std::conditional_t<sizeof(T) == 8, std::uint64_t, std::uint32_t>>(v);
-}
-
-// Every link column but the path counts, bit for bit.
-void expect_same_link_columns(const LinkRecord& p, const LinkRecord& q) {
-  EXPECT_EQ(std::pair(p.tx, p.rx), std::pair(q.tx, q.rx));
-  EXPECT_EQ(p.los_class, q.los_class);
-  EXPECT_EQ(p.flags, q.flags);
-  EXPECT_EQ(p.blocker_count, q.blocker_count);
-  EXPECT_EQ(bits(p.gain_coherent_db), bits(q.gain_coherent_db));
-  EXPECT_EQ(bits(p.gain_incoherent_db), bits(q.gain_incoherent_db));
-  EXPECT_EQ(bits(p.first_delay_s), bits(q.first_delay_s));
-  EXPECT_EQ(bits(p.rms_delay_spread_s), bits(q.rms_delay_spread_s));
-  EXPECT_EQ(p.paths_below_threshold, q.paths_below_threshold);
-  EXPECT_EQ(p.los_class_fresnel, q.los_class_fresnel);
-  EXPECT_EQ(bits(p.fresnel_clearance), bits(q.fresnel_clearance));
-  EXPECT_EQ(bits(p.vehicle_loss_db), bits(q.vehicle_loss_db));
-  EXPECT_EQ(bits(p.diffuse_gain_db), bits(q.diffuse_gain_db));
-  EXPECT_EQ(bits(p.k_factor_db), bits(q.k_factor_db));
-  EXPECT_EQ(bits(p.rms_doppler_spread_hz), bits(q.rms_doppler_spread_hz));
-  EXPECT_EQ(bits(p.strongest_excess_delay_s), bits(q.strongest_excess_delay_s));
-  for (int k = 0; k < 2; ++k) {
-    EXPECT_EQ(bits(p.aod_spread[k]), bits(q.aod_spread[k]));
-    EXPECT_EQ(bits(p.aoa_spread[k]), bits(q.aoa_spread[k]));
-    EXPECT_EQ(bits(p.strongest_aod[k]), bits(q.strongest_aod[k]));
-    EXPECT_EQ(bits(p.strongest_aoa[k]), bits(q.strongest_aoa[k]));
-  }
-}
-
 void expect_same_path(const PathRecord& p, const PathRecord& q) {
   EXPECT_EQ(p.a, q.a);
   EXPECT_EQ(p.tau_s, q.tau_s);

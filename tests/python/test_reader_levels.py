@@ -10,14 +10,7 @@ import sys
 import numpy as np
 
 import raysweep_dataset as rd
-
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what)
+from test_reader import check, failures
 
 
 def same_bits(a, b):
