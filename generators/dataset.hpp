@@ -10,7 +10,6 @@
 // static_object_count + n.
 #pragma once
 
-#include <cmath>
 #include <complex>
 #include <cstdint>
 #include <limits>

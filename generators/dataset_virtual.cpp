@@ -50,6 +50,61 @@ std::vector<T> read_source(const Piece& p, const std::string& name, hid_t mtype,
   }
 }
 
+// The row tables' columns of the level (all but the computed ones) as
+// virtual datasets mapping the pieces' rows in order.
+void map_row_tables(ColumnFile& cf, const std::string& file, StoreLevel level, hsize_t K, const std::vector<Piece>& ps,
+                    const FrameRows& total) {
+  for (const auto& g : dataset_schema().at("groups")) {
+    const std::string group = g.at("name");
+    if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0) || !stored_at(g, level)) continue;
+    for (const auto& d : g.at("datasets")) {
+      const std::string name = d.at("name");
+      if (computed(group, name) || !stored_at(d, level)) continue;
+      const std::string where = "/" + group + "/" + name;
+      const Dtype dtype = hdf5::parse_dtype(d.at("dtype").get<std::string>());
+      const hsize_t width = d.at("shape").size() == 2 ? (d.at("shape")[1].is_string() ? K : d.at("shape")[1].get<hsize_t>()) : 1;
+      const int rank = static_cast<int>(d.at("shape").size());
+      auto rows = [&](const FrameRows& r) {
+        return group == "node_states" ? r.states
+               : group == "paths"     ? r.paths
+               : group == "interactions" ? r.interactions
+                                         : r.links;
+      };
+      const hsize_t n_total = rows(total);
+      if (n_total == 0) {  // nothing to map: an empty column like the writer's
+        cf.column(group, name, dtype);
+        continue;
+      }
+      const hsize_t dims[2] = {n_total, width};
+      Handle vspace(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+      Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+      if (!vspace.valid() || !dcpl.valid() || H5Pset_obj_track_times(dcpl.get(), 0) < 0)
+        hdf5::write_fail(file, where, "cannot set virtual dataset properties");
+      hsize_t dst = 0;
+      for (const auto& p : ps) {
+        const hsize_t n = rows(p.b) - rows(p.a);
+        if (n == 0) continue;
+        const hsize_t src_dims[2] = {rows(p.end), width};
+        Handle sspace(H5Screate_simple(rank, src_dims, nullptr), H5Sclose);
+        const hsize_t s0[2] = {rows(p.a), 0}, d0[2] = {dst, 0}, cnt[2] = {n, width};
+        if (!sspace.valid() || H5Sselect_hyperslab(sspace.get(), H5S_SELECT_SET, s0, nullptr, cnt, nullptr) < 0 ||
+            H5Sselect_hyperslab(vspace.get(), H5S_SELECT_SET, d0, nullptr, cnt, nullptr) < 0 ||
+            H5Pset_virtual(dcpl.get(), vspace.get(), p.spec->mapped_name.c_str(), where.c_str(), sspace.get()) < 0)
+          hdf5::write_fail(file, where, "cannot map rows of " + p.spec->mapped_name);
+        dst += n;
+      }
+      H5Sselect_all(vspace.get());
+      Handle dset(H5Dcreate2(cf.group(group), name.c_str(), cf.types().file(dtype), vspace.get(), H5P_DEFAULT,
+                             dcpl.get(), H5P_DEFAULT),
+                  H5Dclose);
+      if (!dset.valid()) hdf5::write_fail(file, where, "cannot create virtual dataset");
+      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "units", d.at("units").get<std::string>());
+      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "description", d.at("description").get<std::string>());
+      if (dset.close() < 0) hdf5::write_fail(file, where, "cannot close virtual dataset");
+    }
+  }
+}
+
 }  // namespace
 
 void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader& header,
@@ -138,56 +193,7 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
     at.interactions += p.b.interactions - p.a.interactions;
   }
 
-  // Mapped columns.
-  for (const auto& g : dataset_schema().at("groups")) {
-    const std::string group = g.at("name");
-    if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0) || !stored_at(g, header.store)) continue;
-    for (const auto& d : g.at("datasets")) {
-      const std::string name = d.at("name");
-      if (computed(group, name) || !stored_at(d, header.store)) continue;
-      const std::string where = "/" + group + "/" + name;
-      const Dtype dtype = hdf5::parse_dtype(d.at("dtype").get<std::string>());
-      const hsize_t width = d.at("shape").size() == 2 ? (d.at("shape")[1].is_string() ? K : d.at("shape")[1].get<hsize_t>()) : 1;
-      const int rank = static_cast<int>(d.at("shape").size());
-      auto rows = [&](const FrameRows& r) {
-        return group == "node_states" ? r.states
-               : group == "paths"     ? r.paths
-               : group == "interactions" ? r.interactions
-                                         : r.links;
-      };
-      const hsize_t n_total = rows(total);
-      if (n_total == 0) {  // nothing to map: an empty column like the writer's
-        cf.column(group, name, dtype);
-        continue;
-      }
-      const hsize_t dims[2] = {n_total, width};
-      Handle vspace(H5Screate_simple(rank, dims, nullptr), H5Sclose);
-      Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-      if (!vspace.valid() || !dcpl.valid() || H5Pset_obj_track_times(dcpl.get(), 0) < 0)
-        hdf5::write_fail(file, where, "cannot set virtual dataset properties");
-      hsize_t dst = 0;
-      for (const auto& p : ps) {
-        const hsize_t n = rows(p.b) - rows(p.a);
-        if (n == 0) continue;
-        const hsize_t src_dims[2] = {rows(p.end), width};
-        Handle sspace(H5Screate_simple(rank, src_dims, nullptr), H5Sclose);
-        const hsize_t s0[2] = {rows(p.a), 0}, d0[2] = {dst, 0}, cnt[2] = {n, width};
-        if (!sspace.valid() || H5Sselect_hyperslab(sspace.get(), H5S_SELECT_SET, s0, nullptr, cnt, nullptr) < 0 ||
-            H5Sselect_hyperslab(vspace.get(), H5S_SELECT_SET, d0, nullptr, cnt, nullptr) < 0 ||
-            H5Pset_virtual(dcpl.get(), vspace.get(), p.spec->mapped_name.c_str(), where.c_str(), sspace.get()) < 0)
-          hdf5::write_fail(file, where, "cannot map rows of " + p.spec->mapped_name);
-        dst += n;
-      }
-      H5Sselect_all(vspace.get());
-      Handle dset(H5Dcreate2(cf.group(group), name.c_str(), cf.types().file(dtype), vspace.get(), H5P_DEFAULT,
-                             dcpl.get(), H5P_DEFAULT),
-                  H5Dclose);
-      if (!dset.valid()) hdf5::write_fail(file, where, "cannot create virtual dataset");
-      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "units", d.at("units").get<std::string>());
-      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "description", d.at("description").get<std::string>());
-      if (dset.close() < 0) hdf5::write_fail(file, where, "cannot close virtual dataset");
-    }
-  }
+  map_row_tables(cf, file, header.store, K, ps, total);
 
   cf.flush_all();
   write_node_and_object_tables(cf, nodes, objects);

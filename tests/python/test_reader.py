@@ -168,6 +168,11 @@ def main():
     except Exception:
         traceback.print_exc()
         failures.append("exception")
+    return report()
+
+
+def report():
+    """The exit status of a check script: 1 with the failures counted, 0 when there are none."""
     if failures:
         print(f"{len(failures)} check(s) failed")
         return 1

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 import raysweep_dataset as rd
-from test_reader import check, failures
+from test_reader import check, report
 
 
 def same_bits(a, b):
@@ -63,11 +63,7 @@ def main():
         p, q = ds.paths(1), full.paths(1)
         check(same_bits(p["tau_s"], q["tau_s"][1:]), f"top2: link 1 keeps its two strongest paths {p['tau_s']}")
     full.close()
-    if failures:
-        print(f"{len(failures)} check(s) failed")
-        return 1
-    print("all checks passed")
-    return 0
+    return report()
 
 
 if __name__ == "__main__":

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 
 import raysweep_dataset as rd
-from test_reader import check, failures
+from test_reader import check, report
 
 
 def windows_ok(times, splits, gap_s, what):
@@ -55,11 +55,7 @@ def main():
     b = rd.LinkDataset(path, frames=[1, 2])
     check(len(a) == 3 and len(b) == 3, f"split sizes {len(a)}, {len(b)}")
     check(set(a.link_index.tolist()).isdisjoint(b.link_index.tolist()), "a link in two splits")
-    if failures:
-        print(f"{len(failures)} check(s) failed")
-        return 1
-    print("all checks passed")
-    return 0
+    return report()
 
 
 if __name__ == "__main__":
