@@ -15,7 +15,7 @@ PACKAGES=(
   sumo sumo-tools
   libns3-dev ns3 libgsl-dev
   openmpi-bin libopenmpi-dev
-  python3-h5py python3-numpy python3-matplotlib python3-pyproj
+  python3-h5py python3-numpy python3-matplotlib python3-pyproj python3-sklearn python3-torch
   libopenvdb-dev libboost-iostreams-dev python3-openvdb blender
 )
 missing=()

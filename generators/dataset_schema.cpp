@@ -17,6 +17,7 @@
 
 #include "generators/dataset_writer.hpp"
 #include "generators/hdf5_file.hpp"
+#include "generators/context_features.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/schema_validator.hpp"
 #include "generators/sinr/sinr_file.hpp"
@@ -28,6 +29,7 @@ namespace embedded {
 extern const char kDatasetSchemaJson[];  // generated from schemas/raysweep_dataset.schema.json
 extern const char kSinrSchemaJson[];     // generated from schemas/raysweep_sinr.schema.json
 extern const char kNs3TableSchemaJson[]; // generated from schemas/raysweep_ns3_table.schema.json
+extern const char kFeaturesSchemaJson[]; // generated from schemas/raysweep_features.schema.json
 }  // namespace embedded
 
 namespace {
@@ -50,6 +52,10 @@ const EmbeddedSchema& ns3_table_embedded() {
   static const EmbeddedSchema s(embedded::kNs3TableSchemaJson);
   return s;
 }
+const EmbeddedSchema& features_embedded() {
+  static const EmbeddedSchema s(embedded::kFeaturesSchemaJson);
+  return s;
+}
 
 }  // namespace
 
@@ -59,6 +65,8 @@ const std::string& sinr_schema_json() { return sinr_embedded().text; }
 const nlohmann::json& sinr_schema() { return sinr_embedded().json; }
 const std::string& ns3_table_schema_json() { return ns3_table_embedded().text; }
 const nlohmann::json& ns3_table_schema() { return ns3_table_embedded().json; }
+const std::string& features_schema_json() { return features_embedded().text; }
+const nlohmann::json& features_schema() { return features_embedded().json; }
 
 namespace {
 
@@ -69,11 +77,12 @@ const nlohmann::json* schema_of(const std::string& format) {
   if (format == kDatasetFormat) return &dataset_schema();
   if (format == sinr::kSinrFormat) return &sinr_schema();
   if (format == kNs3TableFormat) return &ns3_table_schema();
+  if (format == kFeaturesFormat) return &features_schema();
   return nullptr;
 }
 
 std::string known_formats() {
-  return std::string(kDatasetFormat) + ", " + sinr::kSinrFormat + ", " + kNs3TableFormat;
+  return std::string(kDatasetFormat) + ", " + sinr::kSinrFormat + ", " + kNs3TableFormat + ", " + kFeaturesFormat;
 }
 
 // Opens the file, reads its format and runs that format's validator.
@@ -102,6 +111,8 @@ void validate_file(const std::string& path, std::vector<std::string>& problems) 
     schema::validate_channels(file, *schema, problems);
   else if (format == kNs3TableFormat)
     schema::validate_ns3_table(file, *schema, problems);
+  else if (format == kFeaturesFormat)
+    schema::validate_features(file, *schema, problems);
   else
     schema::validate_sinr(file, *schema, problems);
 }
@@ -188,6 +199,7 @@ nlohmann::json dataset_info(const std::string& path) {
   if (format == kDatasetFormat) return schema::channel_info(r);
   if (format == sinr::kSinrFormat) return schema::sinr_info(r);
   if (format == kNs3TableFormat) return schema::ns3_table_info(r);
+  if (format == kFeaturesFormat) return schema::features_info(r);
   throw meshkit::InputError(path, "attribute format",
                             "not a raysweep file (format \"" + format + "\"; this program reads " + known_formats() + ")");
 }
@@ -195,6 +207,7 @@ nlohmann::json dataset_info(const std::string& path) {
 std::string format_dataset_info(const nlohmann::json& info) {
   if (info.value("format", std::string()) == sinr::kSinrFormat) return schema::format_sinr_info(info);
   if (info.value("format", std::string()) == kNs3TableFormat) return schema::format_ns3_table_info(info);
+  if (info.value("format", std::string()) == kFeaturesFormat) return schema::format_features_info(info);
   return schema::format_channel_info(info);
 }
 

@@ -2,7 +2,8 @@
 // build time and documented in schemas/README.md: channel datasets (format
 // raysweep-channels, schemas/raysweep_dataset.schema.json), SINR outcome files
 // (format raysweep-sinr, schemas/raysweep_sinr.schema.json) and ns-3 lookup tables
-// (format raysweep-ns3-table, schemas/raysweep_ns3_table.schema.json). The root
+// (format raysweep-ns3-table, schemas/raysweep_ns3_table.schema.json) and context-feature
+// files (format raysweep-features, schemas/raysweep_features.schema.json). The root
 // attribute `format` says which.
 #pragma once
 
@@ -24,6 +25,10 @@ const nlohmann::json& sinr_schema();
 // The embedded schemas/raysweep_ns3_table.schema.json text, and parsed.
 const std::string& ns3_table_schema_json();
 const nlohmann::json& ns3_table_schema();
+
+// The embedded schemas/raysweep_features.schema.json text, and parsed.
+const std::string& features_schema_json();
+const nlohmann::json& features_schema();
 
 // Checks a file against the schema of its `format` (a missing or unknown format is
 // one problem naming the file and the format). Both formats: every group, dataset

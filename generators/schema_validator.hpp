@@ -236,4 +236,8 @@ void validate_ns3_table(const hdf5::CheckedFile& file, const nlohmann::json& sch
 nlohmann::json ns3_table_info(const InfoReader& r);
 std::string format_ns3_table_info(const nlohmann::json& info);
 
+void validate_features(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
+nlohmann::json features_info(const InfoReader& r);
+std::string format_features_info(const nlohmann::json& info);
+
 }  // namespace raysweep::generators::schema

@@ -24,6 +24,7 @@
 #include "pipeline/radiomap_stage.hpp"
 #include "pipeline/render_stage.hpp"
 #include "pipeline/scene_stage.hpp"
+#include "pipeline/features_stage.hpp"
 #include "pipeline/ns3_stage.hpp"
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
@@ -365,6 +366,46 @@ Subcommand ns3_table_command(CLI::App& app) {
           }};
 }
 
+Subcommand features_command(CLI::App& app) {
+  auto f = std::make_shared<rp::FeaturesArgs>();
+  auto* fe = app.add_subcommand("features",
+                                "per-link context for learning (the map along the link, the vehicles near it) from "
+                                "the scene and the traffic, never from the tracer -> features.h5");
+  fe->add_option("city", f->city, "city config (uses the outputs of `raysweep run CITY.toml`)");
+  fe->add_option("--city-out", f->city_out, "the output folder of that run, when it ran with --out");
+  fe->add_option("--dataset", f->dataset, "channel dataset .h5 (default: <city out>/dataset.h5)");
+  fe->add_option("--scene", f->scene, "scene folder with scene.glb (default: <city out>/scene)");
+  fe->add_option("--config", f->config, "TOML config ([features], [sweep] exclude_objects) without a city file");
+  fe->add_option("--out", f->out, "output .h5 (default: features.h5 beside the dataset)");
+  fe->add_flag("--force", f->force, "rebuild even when up to date");
+  add_set_option(fe, f->set);
+  return {fe, [f](const Argv& args) {
+            const auto s = rp::run_features_stage(*f, args);
+            std::cout << s["out"].get<std::string>() << ": "
+                      << (s["up_to_date"].get<bool>() ? std::string("up to date")
+                                                      : std::to_string(s["rows"].get<std::uint64_t>()) + " rows")
+                      << "\n";
+            return 0;
+          }};
+}
+
+Subcommand ml_command(CLI::App& app) {
+  auto m = std::make_shared<rp::MlArgs>();
+  auto* ml = app.add_subcommand("ml",
+                                "learning benchmark on the cities' runs: LoS class, path gain and packet tasks, "
+                                "3GPP TR 37.885 baselines against learned models, held-out cities (python/ml)");
+  ml->add_option("cities", m->cities, "city configs, after `raysweep run` of each")->required();
+  ml->add_option("--city-out", m->city_outs, "a city's run folder when it ran with --out (once per city, in order)");
+  ml->add_option("--out", m->out, "output folder: results.json, report.md, PNGs")->required();
+  ml->add_option("--seed", m->seed, "seed of the models and the bootstrap")->capture_default_str();
+  ml->add_option("--max-train-s", m->max_train_s, "wall-clock budget of the neural model's training, all splits")
+      ->capture_default_str();
+  ml->add_option("--max-links", m->max_links, "training links kept per city and split (evenly spaced)")
+      ->capture_default_str();
+  add_set_option(ml, m->set);
+  return {ml, [m](const Argv& args) { return rp::run_ml_stage(*m, args); }};
+}
+
 Subcommand report_command(CLI::App& app) {
   auto report = std::make_shared<rp::ReportArgs>();
   auto* rp_app =
@@ -538,7 +579,7 @@ using MakeSubcommand = Subcommand (*)(CLI::App&);
 constexpr MakeSubcommand kSubcommands[] = {
     scene_command,  vehicles_command, trace_command,     poses_command,  traffic_command,  sweep_command,
     run_command,    merge_command,    sinr_command,      ns3_table_command, report_command, tradeoff_command,
-    radiomap_command, render_command, config_command,    validate_command, info_command};
+    radiomap_command, render_command, features_command, ml_command, config_command, validate_command, info_command};
 
 // Bad input (files, configs, arguments) exits 2, any other failure 1.
 int run_reporting_errors(const Subcommand& command, const Argv& args) {

@@ -54,4 +54,39 @@ bool run_python_script(const std::string& script, const std::vector<std::string>
   return true;
 }
 
+int run_python_module(const std::string& module, const std::vector<std::string>& args) {
+  const char* python = "/usr/bin/python3";
+  if (::access(python, X_OK) != 0) {
+    spdlog::error("{} not found (Debian's python3 with numpy, h5py, matplotlib, scikit-learn, torch)", python);
+    return 127;
+  }
+  std::vector<std::string> argv_s{python, "-m", module};
+  argv_s.insert(argv_s.end(), args.begin(), args.end());
+  std::vector<char*> argv;
+  for (auto& a : argv_s) argv.push_back(a.data());
+  argv.push_back(nullptr);
+  // The child's environment: ours with python/ first on PYTHONPATH.
+  std::vector<std::string> env_s;
+  std::string path = python_dir().string();
+  for (char** e = environ; *e; ++e) {
+    const std::string kv = *e;
+    if (kv.rfind("PYTHONPATH=", 0) == 0)
+      path += ":" + kv.substr(11);
+    else
+      env_s.push_back(kv);
+  }
+  env_s.push_back("PYTHONPATH=" + path);
+  std::vector<char*> envp;
+  for (auto& kv : env_s) envp.push_back(kv.data());
+  envp.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, python, nullptr, nullptr, argv.data(), envp.data()) != 0) {
+    spdlog::error("cannot start {}", python);
+    return 127;
+  }
+  int status = 0;
+  waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+}
+
 }  // namespace raysweep::pipeline

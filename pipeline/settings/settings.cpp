@@ -17,6 +17,7 @@ json TrafficSettings::to_json() const { return traffic_table().write(*this); }
 json SweepSettings::to_json() const { return sweep_table().write(*this); }
 json SinrSettings::to_json() const { return sinr_table().write(*this); }
 json Ns3Settings::to_json() const { return ns3_table().write(*this); }
+json FeaturesSettings::to_json() const { return features_table().write(*this); }
 json RadioMapSettings::to_json() const { return radiomap_table().write(*this); }
 json TraceSettings::to_json() const {
   return {{"radio", radio_table().write(*this)},
@@ -79,6 +80,7 @@ void read_stages(const ConfigFile& file, Settings& s) {
   }
   s.ns3.present = file.read(ns3_table(), s.ns3);
   s.radiomap.present = file.read(radiomap_table(), s.radiomap);
+  file.read(features_table(), s.features);
 }
 
 Settings defaults() {

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "pipeline/settings/city.hpp"
+#include "pipeline/settings/features.hpp"
 #include "pipeline/settings/ns3.hpp"
 #include "pipeline/settings/radiomap.hpp"
 #include "pipeline/settings/scene.hpp"
@@ -32,6 +33,7 @@ struct Settings {
   SinrSettings sinr;
   Ns3Settings ns3;
   RadioMapSettings radiomap;
+  FeaturesSettings features;
   // Every table with every key, defaults filled in: what `raysweep config`
   // prints and what `raysweep run` stamps its stages with.
   nlohmann::json effective;

@@ -258,6 +258,28 @@ const Table<Ns3Settings>& ns3_table() {
   return t;
 }
 
+const Table<FeaturesSettings>& features_table() {
+  static const Table<FeaturesSettings> t = [] {
+    Table<FeaturesSettings> t("features",
+                              "`raysweep features` and `ml`: per-link context from the scene and the traffic "
+                              "(schemas/README.md, context-feature file).");
+    t.key("along_cells", integer<std::uint32_t>(between(1, 1024)), FIELD(grid.along_cells), "",
+          "corridor cells along the link, tx to rx");
+    t.key("across_cells", integer<std::uint32_t>(between(1, 1024)), FIELD(grid.across_cells), "",
+          "corridor cells across the link");
+    t.key("half_width_m", number(above(0)), FIELD(grid.half_width_m), "m", "the corridor reaches this far either side");
+    t.key("max_vehicles", integer<std::uint32_t>(between(1, 254)), FIELD(grid.max_vehicles), "",
+          "vehicles kept per link: those nearest the tx-rx line");
+    t.key("height_scale_m", number(above(0)), FIELD(grid.height_scale_m), "m", "one step of the stored building height");
+    t.key("map_resolution_m", number(above(0)), FIELD(grid.map_resolution_m), "m",
+          "cell edge of the static height map the corridor samples");
+    t.key("frame_stride", integer<std::uint32_t>(at_least(1)), FIELD(grid.frame_stride), "",
+          "the links of every this-many-th frame");
+    return t;
+  }();
+  return t;
+}
+
 const Table<RadioMapSettings>& radiomap_table() {
   static const Table<RadioMapSettings> t = [] {
     Table<RadioMapSettings> t("radiomap", "`raysweep radiomap` and `run`: path gain at every voxel (docs/radiomap.md).");
@@ -290,7 +312,8 @@ const Table<RadioMapSettings>& radiomap_table() {
 const std::vector<const TableBase*>& config_tables() {
   static const std::vector<const TableBase*> all = {
       &city_table(),   &scene_table(),  &vehicles_table(),  &traffic_table(), &sweep_table(),   &radio_table(),
-      &tracer_table(), &materials_table(), &sinr_table(),   &ns3_table(),     &radiomap_table()};
+      &tracer_table(), &materials_table(), &sinr_table(),   &ns3_table(),     &radiomap_table(),
+      &features_table()};
   return all;
 }
 

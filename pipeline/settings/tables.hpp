@@ -20,6 +20,7 @@ struct SweepSettings;
 struct TraceSettings;
 struct SinrSettings;
 struct Ns3Settings;
+struct FeaturesSettings;
 struct RadioMapSettings;
 
 const schema::Table<CitySettings>& city_table();
@@ -32,6 +33,7 @@ const schema::Table<TraceSettings>& tracer_table();
 const schema::Table<TraceSettings>& materials_table();
 const schema::Table<SinrSettings>& sinr_table();
 const schema::Table<Ns3Settings>& ns3_table();
+const schema::Table<FeaturesSettings>& features_table();
 const schema::Table<RadioMapSettings>& radiomap_table();
 
 // Every top-level table, in the order docs/config.md lists them.

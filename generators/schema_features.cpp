@@ -1,0 +1,120 @@
+// The context-feature file (raysweep-features) beyond its schema: rows in
+// the channel dataset's link order and range, vehicle slots filled before the
+// empty ones; its summary for `raysweep info`.
+#include "generators/schema_validator.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+
+#include "generators/context_features.hpp"
+
+namespace raysweep::generators::schema {
+
+namespace {
+
+class FeaturesValidator : public Validator {
+ public:
+  using Validator::Validator;
+
+ protected:
+  void rules() override {
+    guarded("/links/link", [&] { check_rows(); });
+    guarded("/vehicles/vclass", [&] { check_slots(); });
+  }
+
+ private:
+  std::uint64_t root(const char* name) const {
+    auto it = attr_values_.find(std::string("/") + name);
+    return it == attr_values_.end() ? ~std::uint64_t{0} : it->second;
+  }
+
+  void check_rows() {
+    const hid_t link = dset("/links/link"), frame = dset("/links/frame");
+    if (link < 0 || frame < 0) return;
+    const hsize_t m = dataset_dims(link, "/links/link")[0];
+    const auto l = read_u64(link, "/links/link", 0, m);
+    const auto f = read_u64(frame, "/links/frame", 0, m);
+    const std::uint64_t L = root("dataset_link_count"), F = root("dataset_frame_count");
+    Tally order, range;
+    for (hsize_t i = 0; i < m; ++i) {
+      if (i > 0 && (l[i] <= l[i - 1] || f[i] < f[i - 1])) order.add(i, "link " + std::to_string(l[i]));
+      if (l[i] >= L || f[i] >= F) range.add(i, "link " + std::to_string(l[i]) + ", frame " + std::to_string(f[i]));
+    }
+    order.report(problems_, "/links/link", "not after the previous row's link and frame");
+    range.report(problems_, "/links", "beyond the channel dataset's links or frames (dataset_link_count, dataset_frame_count)");
+  }
+
+  // Slots below count hold a vehicle class of the table, the others 255.
+  void check_slots() {
+    const hid_t count = dset("/vehicles/count"), vclass = dset("/vehicles/vclass");
+    if (count < 0 || vclass < 0) return;
+    const auto k = dim("K");
+    if (!k || *k == 0) return;
+    const hsize_t m = dataset_dims(count, "/vehicles/count")[0];
+    const auto& table = schema_.at("codes").at("vehicle_class").at("values");
+    Tally bad;
+    for (hsize_t start = 0; start < m; start += kBlockRows) {
+      const hsize_t n = std::min(kBlockRows, m - start);
+      const auto c = read_u64(count, "/vehicles/count", start, n);
+      const auto v = read_rows<std::uint64_t>(vclass, "/vehicles/vclass", H5T_NATIVE_UINT64, start, n, *k);
+      for (hsize_t r = 0; r < n; ++r) {
+        if (c[r] > *k) bad.add(start + r, "count " + std::to_string(c[r]) + " > max_vehicles");
+        for (hsize_t s = 0; s < *k; ++s) {
+          const std::uint64_t code = v[r * *k + s];
+          const bool ok = s < c[r] ? table.contains(std::to_string(code)) : code == kNoVehicle;
+          if (!ok) bad.add(start + r, "slot " + std::to_string(s) + " class " + std::to_string(code));
+        }
+      }
+    }
+    bad.report(problems_, "/vehicles", "with a filled slot outside the vehicle_class table or an empty slot not 255");
+  }
+};
+
+}  // namespace
+
+void validate_features(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems) {
+  FeaturesValidator(file, schema, problems).run();
+}
+
+nlohmann::json features_info(const InfoReader& r) {
+  nlohmann::json info = identity_info(r, kFeaturesFormat);
+  for (const char* k : {"along_cells", "across_cells", "max_vehicles", "frame_stride", "dataset_link_count"})
+    info[k] = r.num_attr<std::uint64_t>("/", k).value_or(0);
+  for (const char* k : {"half_width_m", "height_scale_m", "map_resolution_m"})
+    info[k] = r.num_attr<double>("/", k).value_or(0.0);
+  const hsize_t rows = r.rows("/links/link");
+  info["rows"] = rows;
+  std::uint64_t vehicles = 0;
+  r.scan_u64("/vehicles/count", [&](const std::vector<std::uint64_t>& v) {
+    for (auto c : v) vehicles += c;
+  });
+  info["mean_vehicles_per_row"] = rows ? static_cast<double>(vehicles) / static_cast<double>(rows) : 0.0;
+  add_file_size(info, r.path, rows, "bytes_per_row");
+  return info;
+}
+
+std::string format_features_info(const nlohmann::json& info) {
+  auto num = [&](const char* k) { return static_cast<unsigned long long>(info.value(k, nlohmann::json(0)).get<std::uint64_t>()); };
+  auto real = [&](const char* k) { return info.value(k, nlohmann::json(0.0)).get<double>(); };
+  std::ostringstream o;
+  char buf[256];
+  o << identity_lines(info);
+  std::snprintf(buf, sizeof buf, "rows          %llu (links of every %llu. frame of %llu links)\n", num("rows"),
+                num("frame_stride"), num("dataset_link_count"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "corridor      %llu x %llu cells, +-%.1f m wide, heights in %.2f m steps, map %.2f m\n",
+                num("along_cells"), num("across_cells"), real("half_width_m"), real("height_scale_m"),
+                real("map_resolution_m"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "vehicles      %.2f a row on average (%llu slots)\n", real("mean_vehicles_per_row"),
+                num("max_vehicles"));
+  o << buf;
+  std::snprintf(buf, sizeof buf, "size          %s (%.0f bytes a row)\n",
+                human_bytes(static_cast<double>(info.value("file_bytes", nlohmann::json(0)).get<std::uint64_t>())).c_str(),
+                real("bytes_per_row"));
+  o << buf;
+  return o.str();
+}
+
+}  // namespace raysweep::generators::schema
