@@ -61,7 +61,8 @@ FeaturesInputs resolve(const FeaturesArgs& a) {
 json content_key(const FeaturesInputs& in, const json& inputs) {
   json key = {{"features", in.settings.features.to_json()},
               {"exclude_objects", in.settings.sweep.exclude_objects},
-              {"version", kVersion}};
+              {"version", kVersion},
+              {"schema", generators::kFeaturesSchemaVersion}};
   for (const auto& f : inputs) key["sha256"].push_back(f.at("sha256"));
   return key;
 }
