@@ -74,7 +74,9 @@ def explain(rows, task, model, split, facts, truth):
                    f"scores accuracy {max(share, 1 - share):.3f}, Brier {share * (1 - share):.3f} at the base rate")
         out.append(f"{model}'s residual sigma for the threshold rule: {facts['models'][model]['sigma_db']:.1f} dB")
     if facts["label_noise_test"] is not None:
-        out.append(f"label noise: the Fresnel label disagrees with the geometric los_class on "
+        # Not noise in the labels themselves: how far the class hinges on the Fresnel zone's margin,
+        # which no input places to a metre.
+        out.append(f"label ambiguity: the Fresnel label differs from the direct ray's (geometric los_class) on "
                    f"{100 * facts['label_noise_test']:.1f} % of the test links")
     if facts["median_d_train"] is not None:
         out.append(f"distance shift: median 3-D distance train {facts['median_d_train']:.0f} m, "
