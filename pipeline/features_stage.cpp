@@ -124,7 +124,7 @@ int run_ml_stage(const MlArgs& args, const std::vector<std::string>& argv) {
     throw std::invalid_argument("ml: more --city-out than city files (one per city, in order)");
   if (args.out.empty()) throw std::invalid_argument("ml: --out DIR is required");
   std::vector<std::string> py{"--out", args.out, "--seed", std::to_string(args.seed), "--max-train-s",
-                              std::to_string(args.max_train_s), "--max-links", std::to_string(args.max_links)};
+                              fmt::format("{}", args.max_train_s), "--max-links", std::to_string(args.max_links)};
   for (std::size_t i = 0; i < args.cities.size(); ++i) {
     FeaturesArgs f;
     f.city = args.cities[i];
