@@ -2,7 +2,9 @@
 // h5_mutate.hpp): edits of a valid dataset, then every reader of it the CLI
 // has: generators::DatasetReader (merge: all frames, row offsets),
 // sinr::ChannelTrace::load (the SINR stage), build_ns3_table (`raysweep
-// ns3-table`) and dataset_info (`raysweep info`).
+// ns3-table`), write_features (`raysweep features`) and dataset_info
+// (`raysweep info`); the feature file it writes is validated.
+#include "generators/context_features.hpp"
 #include "generators/dataset_reader.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/sinr/channel_trace.hpp"
@@ -33,6 +35,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fuzz::expect_clear_errors("build_ns3_table", path, [&] {
     generators::Ns3TableHeader h;
     generators::build_ns3_table(path, fuzz::scratch() / "table.h5", h, 2);
+  });
+  fuzz::expect_clear_errors("write_features", path, [&] {
+    // An empty height map: the corridors are open ground, the node states and links are read.
+    generators::FeatureGridSpec spec;
+    spec.along_cells = 8, spec.across_cells = 4;
+    const auto out = fuzz::scratch() / "features.h5";
+    generators::FeaturesHeader h;
+    h.config = nlohmann::json::object(), h.inputs = nlohmann::json::array(), h.provenance = nlohmann::json::object();
+    generators::write_features(spec, generators::HeightMap{}, path, out, h);
+    const auto problems = generators::validate_dataset(out.string());
+    if (!problems.empty()) fuzz::finding("write_features wrote an invalid file: " + problems.front());
   });
   fuzz::expect_clear_errors("dataset_info", path, [&] { generators::dataset_info(path); });
   return 0;
