@@ -141,6 +141,7 @@ struct TraceScene::Impl {
   std::vector<bool> slot_enabled;
   std::vector<double> cos_yaw, sin_yaw;
   std::vector<Edge> edges;
+  std::vector<char> ground;  // per static face: is_ground
   // Bit g of row 2 f + (side < 0): static face g reaches that side of f
   // (a bitset: a list per face and side grows as faces squared in ints).
   std::vector<std::uint64_t> reaching;
@@ -540,6 +541,30 @@ std::vector<Edge> exposed_parts(const TraceScene& scene, const std::vector<Edge>
 
 }  // namespace
 
+namespace {
+
+// The ground: large horizontal faces (a bounding radius of 25 m or more) at
+// the scene's lowest level of such faces, within kGroundBand. A large flat
+// roof is above that band: it stays a reflector and an obstacle like any
+// other face, and does not multiply the ground's order-3 search (a town of
+// 633 buildings had 71 such faces).
+std::vector<char> ground_faces(const TraceScene::Shape& w) {
+  constexpr double kGroundBand = 2.0;  // m: curbs, gentle slopes, ground split into patches
+  const std::size_t nf = w.face_plane.size();
+  std::vector<char> out(nf, 0);
+  auto large_flat = [&](std::size_t f) {
+    return std::fabs(w.face_plane[f].normal[2]) > 0.999 && w.face_sphere[f].radius >= 25;
+  };
+  auto height = [&](std::size_t f) { return w.face_plane[f].offset / w.face_plane[f].normal[2]; };
+  double lowest = std::numeric_limits<double>::infinity();
+  for (std::size_t f = 0; f < nf; ++f)
+    if (large_flat(f)) lowest = std::min(lowest, height(f));
+  for (std::size_t f = 0; f < nf; ++f) out[f] = large_flat(f) && height(f) <= lowest + kGroundBand;
+  return out;
+}
+
+}  // namespace
+
 TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_unique<Impl>()) {
   auto& d = *impl_;
   d.device = rtcNewDevice("verbose=0");
@@ -553,6 +578,7 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   build_shape(d.world, static_scene, [this](const std::string& m) { return material_index(m); }, 0);
   for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
   d.edges = extract_edges(d.world, d.static_objects);
+  d.ground = ground_faces(d.world);
   {
     const std::size_t nf = d.world.face_plane.size();
     std::vector<std::vector<std::uint32_t>> verts(nf);
@@ -926,10 +952,7 @@ void TraceScene::face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3
   }
 }
 
-bool TraceScene::is_ground(std::uint32_t f) const {
-  const auto& w = impl_->world;
-  return std::fabs(w.face_plane.at(f).normal[2]) > 0.999 && w.face_sphere[f].radius >= 25;
-}
+bool TraceScene::is_ground(std::uint32_t f) const { return impl_->ground.at(f) != 0; }
 
 TraceScene::Sphere TraceScene::vehicle_sphere(std::size_t v) const {
   const auto& d = *impl_;

@@ -2,6 +2,8 @@
 // moving between frames, reciprocity, determinism across thread counts,
 // Doppler, the slab cap, and channel helpers on traced paths.
 #include <gtest/gtest.h>
+
+#include <map>
 #include <tbb/global_control.h>
 
 #include <cmath>
@@ -292,4 +294,24 @@ TEST(TracerScene, RaysThroughSharedEdgesAndVerticesCrossOnce) {
       }
     }
   }
+}
+
+TEST(TracerScene, GroundIsTheLowestLargeFlatLevelNotALargeFlatRoof) {
+  // Ground at z = 0 and a raised plaza at 1.5 m (both within the ground's
+  // band), a 120 x 80 m block with a flat roof at 12 m, a 10 m kiosk.
+  meshkit::Scene s;
+  add_ground(s, 200);
+  add_ground(s, 40, "concrete", 300, 0, 1.5);
+  add_box_object(s, {-60, -40, 0}, {60, 40, 12}, "concrete", "way/1");
+  add_box_object(s, {100, 100, 0}, {110, 110, 8}, "concrete", "way/2");
+  const tracer::TraceScene scene(s);
+  std::map<long, bool> ground_at;  // height in cm of each upward-facing horizontal face -> is_ground
+  for (std::uint32_t f = 0; f < scene.face_count(0); ++f) {
+    const tracer::Plane p = scene.plane({0, f});
+    if (p.normal[2] > 0.999) ground_at[std::lround(100 * p.offset / p.normal[2])] = scene.is_ground(f);
+  }
+  EXPECT_TRUE(ground_at.at(0));
+  EXPECT_TRUE(ground_at.at(150));
+  EXPECT_FALSE(ground_at.at(1200));  // large and flat, but a roof
+  EXPECT_FALSE(ground_at.at(800));   // small
 }
