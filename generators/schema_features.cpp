@@ -100,8 +100,8 @@ std::string format_features_info(const nlohmann::json& info) {
   std::ostringstream o;
   char buf[256];
   o << identity_lines(info);
-  std::snprintf(buf, sizeof buf, "rows          %llu (links of every %llu. frame of %llu links)\n", num("rows"),
-                num("frame_stride"), num("dataset_link_count"));
+  std::snprintf(buf, sizeof buf, "rows          %llu (frame stride %llu; the dataset has %llu links)\n",
+                num("rows"), num("frame_stride"), num("dataset_link_count"));
   o << buf;
   std::snprintf(buf, sizeof buf, "corridor      %llu x %llu cells, +-%.1f m wide, heights in %.2f m steps, map %.2f m\n",
                 num("along_cells"), num("across_cells"), real("half_width_m"), real("height_scale_m"),

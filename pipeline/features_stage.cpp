@@ -7,9 +7,7 @@
 #include <filesystem>
 
 #include "generators/context_features.hpp"
-#include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
-#include "pipeline/city_run.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
@@ -98,7 +96,7 @@ json run_features_stage(const FeaturesArgs& args, const std::vector<std::string>
   prov["content_key"] = content_key(in, inputs_for_key);
   if (!args.force && up_to_date(in.out, prov["content_key"])) {
     spdlog::info("features: up to date ({})", in.out.string());
-    return {{"out", in.out.string()}, {"up_to_date", true}};
+    return {{"out", in.out.string()}, {"city", in.settings.city.name}, {"up_to_date", true}};
   }
   spdlog::info("features: {} + {} -> {}", in.dataset.string(), in.scene_glb.string(), in.out.string());
   const generators::HeightMap map = height_map(in);
@@ -114,8 +112,8 @@ json run_features_stage(const FeaturesArgs& args, const std::vector<std::string>
   spdlog::info("features: {} rows of {} frames, {} bytes ({:.0f} a row) in {:.1f} s -> {}", stats.rows, stats.frames,
                bytes, stats.rows ? static_cast<double>(bytes) / static_cast<double>(stats.rows) : 0.0, stats.seconds,
                in.out.string());
-  return {{"out", in.out.string()}, {"rows", stats.rows},   {"frames", stats.frames},
-          {"bytes", bytes},          {"seconds", stats.seconds}, {"up_to_date", false}};
+  return {{"out", in.out.string()}, {"city", in.settings.city.name}, {"rows", stats.rows},
+          {"frames", stats.frames},  {"bytes", bytes}, {"seconds", stats.seconds}, {"up_to_date", false}};
 }
 
 int run_ml_stage(const MlArgs& args, const std::vector<std::string>& argv) {
@@ -131,13 +129,13 @@ int run_ml_stage(const MlArgs& args, const std::vector<std::string>& argv) {
     f.city_out = i < args.city_outs.size() ? args.city_outs[i] : "";
     f.set = args.set;
     const json s = run_features_stage(f, argv);
-    const Settings settings = load_city_settings(f.city, f.set);
+    const std::string name = s["city"].get<std::string>();
     const fs::path run = fs::path(s["out"].get<std::string>()).parent_path();
     if (!fs::exists(run / "sinr" / "ray.h5"))
       spdlog::warn("ml: {}: no sinr/ray.h5 (the city file has no [sinr] table): no packet task for {}", run.string(),
-                   settings.city.name);
+                   name);
     py.push_back("--city");
-    py.push_back(settings.city.name + "=" + run.string());
+    py.push_back(name + "=" + run.string());
   }
   fs::create_directories(args.out);
   spdlog::info("ml: python3 -m ml {}", fmt::join(py, " "));

@@ -26,7 +26,7 @@ struct FeaturesArgs {
 
 // Builds the feature file unless one made from the same dataset, scene and
 // settings is there (its recorded inputs and config match). Returns a
-// summary (out, rows, frames, seconds, up_to_date).
+// summary (out, city name, rows, frames, bytes, seconds, up_to_date).
 nlohmann::json run_features_stage(const FeaturesArgs& args, const std::vector<std::string>& argv);
 
 struct MlArgs {

@@ -539,10 +539,6 @@ std::vector<Edge> exposed_parts(const TraceScene& scene, const std::vector<Edge>
   return out;
 }
 
-}  // namespace
-
-namespace {
-
 // The ground: large horizontal faces (a bounding radius of 25 m or more) at
 // the scene's lowest level of such faces, within kGroundBand. A large flat
 // roof is above that band: it stays a reflector and an obstacle like any
