@@ -58,8 +58,10 @@ std::string radio_material_id(std::string_view material) {
 }
 
 std::optional<std::string> radio_material_from_id(std::string_view id) {
-  if (auto itu = itu_material_from_id(id)) return itu;
   if (id.rfind("mat-", 0) == 0) id.remove_prefix(4);
+  // "raysweep_<name>": a material written with its own parameters (peer export).
+  if (id.rfind("raysweep_", 0) == 0) id.remove_prefix(9);
+  if (auto itu = itu_material_from_id(id)) return itu;
   if (find_custom_material(id)) return std::string(id);
   return std::nullopt;
 }

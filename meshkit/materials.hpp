@@ -35,7 +35,8 @@ bool is_radio_material(std::string_view name);
 // Names as files carry them: "itu_concrete" for ITU materials, the plain
 // name ("plastic") for custom ones.
 std::string radio_material_id(std::string_view material);
-// Inverse of radio_material_id, also accepting a "mat-" prefix (Mitsuba ids).
+// Inverse of radio_material_id, also accepting a "mat-" prefix (Mitsuba ids)
+// and "raysweep_<name>" (materials written with explicit parameters).
 std::optional<std::string> radio_material_from_id(std::string_view id);
 
 // OSM building:material / building:facade:material values -> P.2040 name.

@@ -56,7 +56,40 @@ void check_mesh_name(const std::string& name, std::set<std::string>& seen) {
 
 }  // namespace
 
-void write_mitsuba(const Scene& scene, const std::string& dir) {
+namespace {
+
+std::string number(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+// Sionna 0.x style: a display colour; Sionna maps the id to its own ITU table.
+void write_itu_bsdf(std::ostream& xml, const std::string& mat) {
+  const std::string id = xml_escape("mat-" + radio_material_id(mat));
+  const auto rgb = material_display_color(mat);
+  char value[64];
+  std::snprintf(value, sizeof value, "%.6f %.6f %.6f", rgb[0], rgb[1], rgb[2]);
+  xml << "\t<bsdf type=\"diffuse\" id=\"" << id << "\" name=\"" << id << "\">\n"
+      << "\t\t<rgb value=\"" << value << "\" name=\"reflectance\"/>\n"
+      << "\t</bsdf>\n";
+}
+
+void write_radio_bsdf(std::ostream& xml, const std::string& mat, const MitsubaRadioMaterial& m) {
+  const std::string id = xml_escape("mat-raysweep_" + mat);
+  xml << "\t<bsdf type=\"radio-material\" id=\"" << id << "\" name=\"" << id << "\">\n";
+  const std::pair<const char*, double> props[] = {{"relative_permittivity", m.relative_permittivity},
+                                                  {"conductivity", m.conductivity},
+                                                  {"thickness", m.thickness_m},
+                                                  {"scattering_coefficient", m.scattering_coefficient},
+                                                  {"xpd_coefficient", m.xpd_coefficient}};
+  for (const auto& [name, v] : props)
+    xml << "\t\t<float name=\"" << name << "\" value=\"" << number(v) << "\"/>\n";
+  xml << "\t</bsdf>\n";
+}
+
+void write_scene_files(const Scene& scene, const std::string& dir,
+                       const std::map<std::string, MitsubaRadioMaterial>* radio) {
   std::set<std::string> names;
   std::vector<std::string> materials;  // in order of first use, for a stable file
   for (const Mesh& m : scene.meshes) {
@@ -65,6 +98,9 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
     if (!is_radio_material(m.material))
       throw std::invalid_argument("write_mitsuba: mesh '" + m.name + "': material '" + m.material +
                                   "' is not a radio material");
+    if (radio && !radio->count(m.material))
+      throw std::invalid_argument("write_mitsuba: mesh '" + m.name + "': no parameters for material '" +
+                                  m.material + "'");
     if (std::find(materials.begin(), materials.end(), m.material) == materials.end())
       materials.push_back(m.material);
   }
@@ -76,25 +112,20 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
 
   std::ostringstream xml;
   xml << "<scene version=\"2.1.0\">\n\n";
-  xml << "<!-- Materials: Sionna RT maps mat-itu_<name> to ITU-R P.2040 materials -->\n\n";
-  for (const std::string& mat : materials) {
-    const std::string id = xml_escape("mat-" + radio_material_id(mat));
-    const auto rgb = material_display_color(mat);
-    char value[64];
-    std::snprintf(value, sizeof value, "%.6f %.6f %.6f", rgb[0], rgb[1], rgb[2]);
-    xml << "\t<bsdf type=\"diffuse\" id=\"" << id << "\" name=\"" << id << "\">\n"
-        << "\t\t<rgb value=\"" << value << "\" name=\"reflectance\"/>\n"
-        << "\t</bsdf>\n";
-  }
+  if (radio) xml << "<!-- Materials: Sionna RT 2 radio-material plugins with raysweep's parameters -->\n\n";
+  else xml << "<!-- Materials: Sionna RT maps mat-itu_<name> to ITU-R P.2040 materials -->\n\n";
+  for (const std::string& mat : materials)
+    radio ? write_radio_bsdf(xml, mat, radio->at(mat)) : write_itu_bsdf(xml, mat);
   xml << "\n<!-- Shapes -->\n\n";
   for (const Mesh& m : scene.meshes) {
     if (m.triangles.empty()) continue;
     write_ply((root / "meshes" / (m.name + ".ply")).string(), m.vertices, m.triangles);
     const std::string id = xml_escape("mesh-" + m.name);
+    const std::string bsdf = radio ? "mat-raysweep_" + m.material : "mat-" + radio_material_id(m.material);
     xml << "\t<shape type=\"ply\" id=\"" << id << "\" name=\"" << id << "\">\n"
         << "\t\t<string name=\"filename\" value=\"meshes/" << xml_escape(m.name) << ".ply\"/>\n"
         << "\t\t<boolean name=\"face_normals\" value=\"true\"/>\n"
-        << "\t\t<ref id=\"" << xml_escape("mat-" + radio_material_id(m.material)) << "\" name=\"bsdf\"/>\n"
+        << "\t\t<ref id=\"" << xml_escape(bsdf) << "\" name=\"bsdf\"/>\n"
         << "\t</shape>\n";
   }
   xml << "</scene>\n";
@@ -103,6 +134,15 @@ void write_mitsuba(const Scene& scene, const std::string& dir) {
   std::ofstream out(xml_path, std::ios::binary | std::ios::trunc);
   out << xml.str();
   if (!out.flush()) throw std::runtime_error("cannot write " + xml_path.string());
+}
+
+}  // namespace
+
+void write_mitsuba(const Scene& scene, const std::string& dir) { write_scene_files(scene, dir, nullptr); }
+
+void write_mitsuba(const Scene& scene, const std::string& dir,
+                   const std::map<std::string, MitsubaRadioMaterial>& radio) {
+  write_scene_files(scene, dir, &radio);
 }
 
 // ---------------------------------------------------------------- reading

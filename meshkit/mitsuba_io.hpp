@@ -5,6 +5,7 @@
 // them.
 #pragma once
 
+#include <map>
 #include <string>
 
 #include "meshkit/scene.hpp"
@@ -16,6 +17,22 @@ namespace raysweep::meshkit {
 // Throws std::invalid_argument for a non-ITU material or a mesh name that is
 // not a plain, unique file name, std::runtime_error when writing fails.
 void write_mitsuba(const Scene& scene, const std::string& dir);
+
+// A material's parameters at one carrier, as Sionna RT 2's "radio-material"
+// plugin reads them (meshkit names materials; the tracer computes these).
+struct MitsubaRadioMaterial {
+  double relative_permittivity = 1;
+  double conductivity = 0;  // S/m
+  double thickness_m = 0.1;
+  double scattering_coefficient = 0;
+  double xpd_coefficient = 0;
+};
+
+// The same files with each material written with its parameters
+// (<bsdf type="radio-material" id="mat-raysweep_<material>">), so that a
+// peer reads exactly the values raysweep traces with instead of its own
+// tables. Every material of a mesh must be in `radio`.
+void write_mitsuba(const Scene& scene, const std::string& dir, const std::map<std::string, MitsubaRadioMaterial>& radio);
 
 // Reads a Mitsuba scene of PLY shapes. Each shape becomes one Mesh (name = the
 // shape id without "mesh-") and one SceneObject {"mesh", shape id}; faces are

@@ -143,7 +143,10 @@ Subcommand trace_command(CLI::App& app) {
   tc->add_option("--vehicles", trace->vehicles, "vehicle library folder (default: built-in parametric models)");
   tc->add_option("--poses", trace->poses, "vehicle poses CSV: id,class,x,y,heading_deg,speed_mps[,z]");
   tc->add_option("--nodes", trace->nodes, "bare antennas CSV: id,x,y,z");
-  tc->add_option("--out", trace->out, "output: .json (trace document) or .h5 (one-frame channel dataset)")->required();
+  tc->add_option("--out", trace->out, "output: .json (trace document) or .h5 (one-frame channel dataset)");
+  tc->add_option("--mitsuba", trace->mitsuba,
+                 "also write the snapshot for a peer tracer: Mitsuba/Sionna RT 2 scene with raysweep's material "
+                 "parameters, every vehicle posed, and peer.json with the antennas (without --out: only that)");
   tc->add_option("--config", *config, "TOML config ([radio], [tracer], [materials.<name>])");
   tc->add_option("--lod", trace->lod, "vehicle LOD (default: each library entry's default)");
   tc->add_option("--exclude-objects", trace->exclude_objects,
@@ -152,6 +155,10 @@ Subcommand trace_command(CLI::App& app) {
   add_set_option(tc, *sets);
   return {tc, [trace, config, sets](const Argv& args) {
             const auto summary = rp::run_trace_stage(*trace, rp::load_settings(*config, *sets), args);
+            if (trace->out.empty()) {
+              std::cout << trace->mitsuba << ": " << summary["nodes"] << " antennas\n";
+              return 0;
+            }
             std::cout << trace->out << ": " << summary["pairs"] << " pairs (" << summary["los"] << " LOS, "
                       << summary["nlosv"] << " NLOSV, " << summary["nlos"] << " NLOS), " << summary["paths"]
                       << " paths\n";

@@ -9,6 +9,7 @@
 #include <fstream>
 
 #include "meshkit/gltf_io.hpp"
+#include "pipeline/peer_export.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
@@ -137,7 +138,9 @@ double seconds_since(std::chrono::steady_clock::time_point t) {
 json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vector<std::string>& argv) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto ext = fs::path(args.out).extension().string();
-  if (ext != ".json" && ext != ".h5")
+  if (args.out.empty() && args.mitsuba.empty())
+    throw std::invalid_argument("trace: nothing to write (--out and/or --mitsuba)");
+  if (!args.out.empty() && ext != ".json" && ext != ".h5")
     throw std::invalid_argument(args.out + ": output must end in .json (trace document) or .h5 (channel dataset)");
   const TraceSettings& settings = all.trace;
   std::optional<tracer::OfdmGrid> grid;
@@ -145,10 +148,6 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
     grid = tracer::ofdm_grid(tracer::parse_ofdm_grid_spec(args.cfr, "--cfr"), settings.radio.frequency_hz);
   SnapshotInputs in;
   load_snapshot(args, all.file, in);
-
-  const auto t1 = std::chrono::steady_clock::now();
-  const auto snap = tracer::trace_snapshot(*in.scene, in.nodes, settings.tracer, settings.radio);
-  const double trace_s = seconds_since(t1);
 
   json config = settings.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
@@ -158,6 +157,16 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
   json prov = provenance("trace", in.files, config, argv);
   all.record_sets(prov);
   prov["embree"] = tracer::embree_version();
+  if (!args.mitsuba.empty()) {
+    write_peer_scene(*in.scene, in.nodes, settings, prov, args.mitsuba);
+    spdlog::info("{}: the snapshot for a peer tracer ({} antennas)", args.mitsuba, in.nodes.size());
+  }
+  if (args.out.empty()) return {{"nodes", in.nodes.size()}, {"mitsuba", args.mitsuba}};
+
+  const auto t1 = std::chrono::steady_clock::now();
+  const auto snap = tracer::trace_snapshot(*in.scene, in.nodes, settings.tracer, settings.radio);
+  const double trace_s = seconds_since(t1);
+
   if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
   const tracer::OfdmGrid* g = grid ? &*grid : nullptr;
   if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov);

@@ -22,9 +22,11 @@ struct TraceArgs {
   int lod = -1;          // vehicle LOD; -1: each entry's default
   std::string exclude_objects;  // regex on static object ids to leave out (e.g. "^mesh-car_")
   std::string cfr;              // "" | "80211p" | "nr:MU:NRB": add each pair's frequency response
+  std::string mitsuba;          // folder: the snapshot for a peer tracer (pipeline/peer_export.hpp)
 };
 
-// [radio], [tracer] and [materials.<name>] from `settings`.
+// [radio], [tracer] and [materials.<name>] from `settings`. With `mitsuba`
+// set, the snapshot is also exported there; with `out` empty, only exported.
 nlohmann::json run_trace_stage(const TraceArgs& args, const Settings& settings, const std::vector<std::string>& argv);
 
 }  // namespace raysweep::pipeline
