@@ -1,3 +1,7 @@
+// The OpenVDB module (libraysweep_vdb.so): the only code that links OpenVDB.
+// raysweep loads it when a radio map is written or read, so that the 57,000
+// symbol bindings OpenVDB costs the dynamic loader (two thirds of every
+// process's start) are paid by the commands that use it only.
 #include "pipeline/radiomap_vdb.hpp"
 
 #include <openvdb/io/File.h>
@@ -55,11 +59,10 @@ typename GridT::Ptr fill(const std::vector<std::array<std::int32_t, 3>>& voxels,
   return g;
 }
 
-}  // namespace
 
-void write_radiomap_vdb(const std::string& path, double voxel_m, double z0_m,
-                        const std::vector<std::array<std::int32_t, 3>>& voxels, const std::vector<VdbGrid>& grids,
-                        const json& meta) {
+void write_vdb(const std::string& path, double voxel_m, double z0_m,
+               const std::vector<std::array<std::int32_t, 3>>& voxels, const std::vector<VdbGrid>& grids,
+               const json& meta) {
   openvdb::initialize();
   const auto transform = make_transform(voxel_m, z0_m);
   openvdb::GridPtrVec out;
@@ -89,7 +92,7 @@ void write_radiomap_vdb(const std::string& path, double voxel_m, double z0_m,
   staged.commit();
 }
 
-VdbSummary read_radiomap_vdb(const std::string& path) {
+VdbSummary read_summary(const std::string& path) {
   openvdb::initialize();
   openvdb::io::File file(path);
   try {
@@ -130,7 +133,7 @@ VdbSummary read_radiomap_vdb(const std::string& path) {
   return s;
 }
 
-std::vector<VdbVoxel> read_vdb_voxels(const std::string& path, const std::string& grid) {
+std::vector<VdbVoxel> read_voxels(const std::string& path, const std::string& grid) {
   openvdb::initialize();
   openvdb::io::File file(path);
   file.open();
@@ -154,4 +157,12 @@ std::vector<VdbVoxel> read_vdb_voxels(const std::string& path, const std::string
   return out;
 }
 
+}  // namespace
+
 }  // namespace raysweep::pipeline
+
+extern "C" __attribute__((visibility("default"))) const raysweep::pipeline::VdbModule* raysweep_vdb_module() {
+  using namespace raysweep::pipeline;
+  static const VdbModule module{kVdbModuleVersion, &write_vdb, &read_summary, &read_voxels};
+  return &module;
+}

@@ -1,5 +1,8 @@
 // The radio map's OpenVDB file (Debian's OpenVDB 10, C++ API). The only
-// translation unit that includes OpenVDB (it costs ~20 s to compile).
+// translation unit that includes OpenVDB (it costs ~20 s to compile) is
+// built as a module of its own (libraysweep_vdb.so beside the binary),
+// loaded on first use: these functions throw std::runtime_error naming the
+// module when it cannot be loaded.
 //
 // Every grid shares one linear transform: voxel (i, j, k) is the point
 // transform.indexToWorld(i, j, k) = (i v, j v, z0 + k v), v the voxel size;
@@ -58,5 +61,16 @@ struct VdbVoxel {
   double value;
 };
 std::vector<VdbVoxel> read_vdb_voxels(const std::string& path, const std::string& grid);
+
+// The module's entry points (radiomap_vdb.cpp), found by the loader
+// (radiomap_vdb_loader.cpp) through the C symbol raysweep_vdb_module.
+constexpr int kVdbModuleVersion = 1;
+struct VdbModule {
+  int version;
+  void (*write)(const std::string&, double, double, const std::vector<std::array<std::int32_t, 3>>&,
+                const std::vector<VdbGrid>&, const nlohmann::json&);
+  VdbSummary (*summary)(const std::string&);
+  std::vector<VdbVoxel> (*voxels)(const std::string&, const std::string&);
+};
 
 }  // namespace raysweep::pipeline

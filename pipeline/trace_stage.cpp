@@ -119,12 +119,15 @@ void write_h5_output(const TraceArgs& args, const SnapshotInputs& in, const trac
   write_trace_dataset(args.out, header, snap, nodes, grid);
 }
 
-json trace_summary(const tracer::Snapshot& snap, std::size_t antennas, double trace_s, double total_s) {
+json trace_summary(const tracer::Snapshot& snap, std::size_t antennas, double load_s, double trace_s, double total_s) {
   std::size_t los = 0, nlosv = 0, nlos = 0;
   for (const auto& p : snap.pairs)
     (p.los_class == tracer::LosClass::LOS ? los : p.los_class == tracer::LosClass::NLOSV ? nlosv : nlos)++;
-  spdlog::info("traced {} antennas, {} pairs ({} LOS / {} NLOSV / {} NLOS), {} paths in {:.1f} ms; total {:.2f} s",
-               antennas, snap.pairs.size(), los, nlosv, nlos, snap.stats.paths, trace_s * 1e3, total_s);
+  spdlog::info(
+      "traced {} antennas, {} pairs ({} LOS / {} NLOSV / {} NLOS), {} paths in {:.1f} ms; total {:.2f} s "
+      "(inputs {:.0f} ms, writing {:.0f} ms)",
+      antennas, snap.pairs.size(), los, nlosv, nlos, snap.stats.paths, trace_s * 1e3, total_s, load_s * 1e3,
+      (total_s - load_s - trace_s) * 1e3);
   return {{"pairs", snap.pairs.size()}, {"paths", snap.stats.paths}, {"los", los}, {"nlosv", nlosv},
           {"nlos", nlos}, {"trace_ms", trace_s * 1e3}};
 }
@@ -164,6 +167,7 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
   if (args.out.empty()) return {{"nodes", in.nodes.size()}, {"mitsuba", args.mitsuba}};
 
   const auto t1 = std::chrono::steady_clock::now();
+  const double load_s = seconds_since(t0);
   const auto snap = tracer::trace_snapshot(*in.scene, in.nodes, settings.tracer, settings.radio);
   const double trace_s = seconds_since(t1);
 
@@ -171,7 +175,7 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
   const tracer::OfdmGrid* g = grid ? &*grid : nullptr;
   if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov);
   else write_json_output(args, in, snap, g, config, prov);
-  return trace_summary(snap, in.nodes.size(), trace_s, seconds_since(t0));
+  return trace_summary(snap, in.nodes.size(), load_s, trace_s, seconds_since(t0));
 }
 
 }  // namespace raysweep::pipeline
