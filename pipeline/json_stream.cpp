@@ -6,10 +6,41 @@
 
 namespace raysweep::pipeline {
 
+JsonStream::~JsonStream() {
+  try {
+    flush();
+  } catch (...) {  // a destructor cannot report it; the caller's stream state does
+  }
+}
+
+void JsonStream::flush() {
+  out_.write(buf_.data(), static_cast<std::streamsize>(buf_.size()));
+  buf_.clear();
+}
+
 void JsonStream::newline(std::size_t depth) {
   const std::size_t n = depth * static_cast<std::size_t>(indent_) + 1;
   if (pad_.size() < n) pad_ = "\n" + std::string(2 * n, ' ');
-  out_.write(pad_.data(), static_cast<std::streamsize>(n));
+  put(std::string_view(pad_.data(), n));
+}
+
+// Printable ASCII without quote or backslash is its own JSON text; anything
+// else (escapes, UTF-8 checks) goes through dump() itself.
+void JsonStream::quoted(std::string_view s) {
+  for (unsigned char c : s)
+    if (c < 0x20 || c > 0x7e || c == '"' || c == '\\') {
+      put(nlohmann::json(std::string(s)).dump());
+      return;
+    }
+  buf_ += '"';
+  buf_.append(s);
+  put("\"");
+}
+
+void JsonStream::string(std::string_view s) {
+  before_value();
+  quoted(s);
+  if (levels_.empty()) flush();
 }
 
 void JsonStream::before_value() {
@@ -24,7 +55,7 @@ void JsonStream::before_value() {
     l.have_key = false;
     return;
   }
-  out_.put(l.empty ? '[' : ',');
+  buf_ += l.empty ? '[' : ',';
   l.empty = false;
   newline(levels_.size());
 }
@@ -35,12 +66,13 @@ JsonStream& JsonStream::key(std::string_view k) {
   if (l.have_key) throw std::logic_error("JsonStream: two keys in a row");
   if (!l.empty && !(l.last_key < k))
     throw std::logic_error("JsonStream: key \"" + std::string(k) + "\" after \"" + l.last_key + "\"");
-  out_.put(l.empty ? '{' : ',');
+  buf_ += l.empty ? '{' : ',';
   l.empty = false;
   l.have_key = true;
   l.last_key = k;
   newline(levels_.size());
-  out_ << nlohmann::json(std::string(k)).dump() << ": ";
+  quoted(k);
+  put(": ");
   return *this;
 }
 
@@ -63,11 +95,12 @@ JsonStream& JsonStream::close(bool object, char bracket) {
   const bool empty = levels_.back().empty;
   levels_.pop_back();
   if (empty) {
-    out_.put(object ? '{' : '[');
+    buf_ += object ? '{' : '[';
   } else {
     newline(levels_.size());
   }
-  out_.put(bracket);
+  buf_ += bracket;
+  if (levels_.empty()) flush();
   return *this;
 }
 
@@ -76,19 +109,21 @@ JsonStream& JsonStream::end_array() { return close(false, ']'); }
 
 void JsonStream::scalar(std::string_view text) {
   before_value();
-  out_ << text;
+  put(text);
+  if (levels_.empty()) flush();  // a root scalar is the whole document
 }
 
 // nlohmann's own shortest round-trip form (what dump() writes), without a json value per number.
 void JsonStream::number(double v) {
   before_value();
   if (!std::isfinite(v)) {
-    out_ << "null";
-    return;
+    put("null");
+  } else {
+    std::array<char, 64> buf;
+    const char* end = nlohmann::detail::to_chars(buf.data(), buf.data() + buf.size(), v);
+    put(std::string_view(buf.data(), static_cast<std::size_t>(end - buf.data())));
   }
-  std::array<char, 64> buf;
-  const char* end = nlohmann::detail::to_chars(buf.data(), buf.data() + buf.size(), v);
-  out_.write(buf.data(), end - buf.data());
+  if (levels_.empty()) flush();
 }
 
 // A small value: dump(indent) shifted to this depth (its strings hold no raw newline).
@@ -97,10 +132,11 @@ void JsonStream::dom(const nlohmann::json& v) {
   const std::string text = v.dump(indent_);
   std::size_t from = 0;
   for (std::size_t nl; (nl = text.find('\n', from)) != std::string::npos; from = nl + 1) {
-    out_.write(text.data() + from, static_cast<std::streamsize>(nl - from));
+    put(std::string_view(text).substr(from, nl - from));
     newline(levels_.size());
   }
-  out_.write(text.data() + from, static_cast<std::streamsize>(text.size() - from));
+  put(std::string_view(text).substr(from));
+  if (levels_.empty()) flush();
 }
 
 }  // namespace raysweep::pipeline

@@ -6,6 +6,7 @@
 // and readers that compared against the DOM's output still read the same bytes.
 #pragma once
 
+#include <charconv>
 #include <ostream>
 #include <string>
 #include <string_view>
@@ -18,7 +19,12 @@ namespace raysweep::pipeline {
 
 class JsonStream {
  public:
-  explicit JsonStream(std::ostream& out, int indent = 1) : out_(out), indent_(indent) {}
+  explicit JsonStream(std::ostream& out, int indent = 1) : out_(out), indent_(indent) { buf_.reserve(kFlushBytes); }
+  ~JsonStream();  // writes what is buffered (flush() reports failures; this cannot)
+  JsonStream(const JsonStream&) = delete;
+  JsonStream& operator=(const JsonStream&) = delete;
+  // Hands the buffered text to the stream (also done when the root value closes).
+  void flush();
 
   JsonStream& begin_object();
   JsonStream& end_object();
@@ -29,10 +35,20 @@ class JsonStream {
   // A scalar, or a small value written as dump(indent) writes it at this depth.
   template <class T>
   JsonStream& value(const T& v) {
-    if constexpr (std::is_same_v<T, bool>) scalar(v ? "true" : "false");
-    else if constexpr (std::is_integral_v<T>) scalar(std::to_string(v));
-    else if constexpr (std::is_floating_point_v<T>) number(static_cast<double>(v));
-    else dom(nlohmann::json(v));
+    if constexpr (std::is_same_v<T, bool>) {
+      scalar(v ? "true" : "false");
+    } else if constexpr (std::is_integral_v<T>) {
+      char text[24];
+      scalar(std::string_view(text, static_cast<std::size_t>(std::to_chars(text, text + sizeof text, v).ptr - text)));
+    } else if constexpr (std::is_floating_point_v<T>) {
+      number(static_cast<double>(v));
+    } else if constexpr (std::is_same_v<T, std::string> || std::is_same_v<T, std::string_view> ||
+                         std::is_same_v<T, const char*> || std::is_same_v<T, char*> ||
+                         (std::is_array_v<T> && std::is_same_v<std::remove_cv_t<std::remove_extent_t<T>>, char>)) {
+      string(std::string_view(v));
+    } else {
+      dom(nlohmann::json(v));
+    }
     return *this;
   }
   template <class T>
@@ -56,7 +72,9 @@ class JsonStream {
     bool have_key = false;  // objects: a key waits for its value
     std::string last_key;
   };
+  static constexpr std::size_t kFlushBytes = 1 << 20;
   std::ostream& out_;
+  std::string buf_;  // text not yet handed to out_ (one write per MiB, not one per token)
   int indent_;
   std::vector<Level> levels_;
   bool wrote_root_ = false;
@@ -64,6 +82,12 @@ class JsonStream {
 
   void before_value();
   void scalar(std::string_view text);
+  void string(std::string_view s);
+  void quoted(std::string_view s);  // s as dump() writes a string
+  void put(std::string_view text) {
+    buf_.append(text);
+    if (buf_.size() >= kFlushBytes) flush();
+  }
   void number(double v);
   void dom(const nlohmann::json& v);
   void newline(std::size_t depth);
