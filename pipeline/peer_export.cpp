@@ -33,12 +33,13 @@ std::string mesh_prefix(std::uint32_t instance) {
   return instance == 0 ? std::string("static") : "veh" + std::to_string(instance - 1);
 }
 
-json material_json(const tracer::RadioMaterial& m, double exported_thickness) {
+json material_json(const tracer::RadioMaterial& m, const meshkit::MitsubaRadioMaterial& exported) {
   const auto& sc = m.scattering;
   return {{"relative_permittivity", m.eps_r},
           {"conductivity", m.sigma},
           {"thickness_m", m.thickness_m},
-          {"exported_thickness_m", exported_thickness},
+          {"exported_thickness_m", exported.thickness_m},
+          {"exported_scattering_coefficient", exported.scattering_coefficient},
           {"scattering_coefficient", sc.s},
           {"xpd_coefficient", sc.xpd},
           {"lobe", tracer::scattering_lobe_name(sc.lobe)},
@@ -94,11 +95,15 @@ std::map<std::string, meshkit::MitsubaRadioMaterial> peer_materials(const tracer
                                                                     const TraceSettings& settings) {
   const tracer::Electromagnetics em(scene.material_names(), settings.radio, settings.tracer.materials,
                                     settings.tracer.diffuse);
+  // Without diffuse scattering raysweep's surfaces are smooth (a specular
+  // reflection keeps its whole field); a peer that scales its reflections
+  // by sqrt(1 - S^2) whatever it traces (Sionna RT) must see S = 0 then.
+  const bool rough = settings.tracer.diffuse;
   std::map<std::string, meshkit::MitsubaRadioMaterial> out;
   for (std::size_t i = 0; i < scene.material_names().size(); ++i) {
     const auto& m = em.material(static_cast<std::uint16_t>(i));
     out[m.name] = {m.eps_r, m.sigma, m.thickness_m > 0 ? m.thickness_m : kHalfSpaceExportThicknessM,
-                   m.scattering.s, m.scattering.xpd};
+                   rough ? m.scattering.s : 0.0, rough ? m.scattering.xpd : 0.0};
   }
   return out;
 }
@@ -118,7 +123,7 @@ void write_peer_scene(const tracer::TraceScene& scene, const std::vector<tracer:
               {"shapes", json::array()}, {"provenance", provenance}};
   for (std::size_t i = 0; i < scene.material_names().size(); ++i) {
     const auto& m = em.material(static_cast<std::uint16_t>(i));
-    doc["materials"][m.name] = material_json(m, radio.at(m.name).thickness_m);
+    doc["materials"][m.name] = material_json(m, radio.at(m.name));
   }
   for (const auto& m : meshes.meshes) {
     if (m.triangles.empty()) continue;

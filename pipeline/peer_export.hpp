@@ -30,7 +30,9 @@ constexpr double kHalfSpaceExportThicknessM = 1.0;
 // edges), objects "static" and "vehicle/<id>".
 meshkit::Scene snapshot_meshes(const tracer::TraceScene& scene);
 
-// Each material the scene uses at the carrier, as the tracer evaluates it.
+// Each material the scene uses at the carrier, as the tracer evaluates it
+// (its scattering coefficients 0 when diffuse scattering is off: what
+// raysweep traces then is a smooth surface).
 std::map<std::string, meshkit::MitsubaRadioMaterial> peer_materials(const tracer::TraceScene& scene,
                                                                     const TraceSettings& settings);
 

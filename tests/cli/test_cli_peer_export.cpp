@@ -125,7 +125,9 @@ TEST(CliPeerExport, StaticSceneRoundTripsWithItsMaterials) {
 
 TEST(CliPeerExport, MaterialsCarryP2040ValuesAtTheCarrier) {
   for (const double f_ghz : {5.9, 3.5}) {
-    const std::string extra = f_ghz == 5.9 ? "" : " --set radio.frequency_hz=3.5e9";
+    // At 3.5 GHz without diffuse scattering: smooth surfaces, S = 0 in the XML.
+    const bool rough = f_ghz == 5.9;
+    const std::string extra = rough ? "" : " --set radio.frequency_hz=3.5e9 --set tracer.diffuse=false";
     const Export e = export_snapshot("materials" + std::to_string(static_cast<int>(f_ghz * 10)), extra);
     const auto props = bsdf_props(e.xml);
     // P.2040-3 Table 3: concrete 5.24, 0.0462 f^0.7822; glass 6.31,
@@ -135,7 +137,9 @@ TEST(CliPeerExport, MaterialsCarryP2040ValuesAtTheCarrier) {
     EXPECT_NEAR(concrete.at("relative_permittivity"), 5.24, 1e-12);
     EXPECT_NEAR(concrete.at("conductivity"), 0.0462 * std::pow(f_ghz, 0.7822), 1e-9);
     EXPECT_NEAR(concrete.at("thickness"), 0.3, 1e-12);
-    EXPECT_NEAR(concrete.at("scattering_coefficient"), 0.4, 1e-12);
+    EXPECT_NEAR(concrete.at("scattering_coefficient"), rough ? 0.4 : 0.0, 1e-12);
+    EXPECT_EQ(e.peer["materials"]["concrete"]["scattering_coefficient"].get<double>(), 0.4);
+    EXPECT_EQ(e.peer["materials"]["concrete"]["exported_scattering_coefficient"].get<double>(), rough ? 0.4 : 0.0);
     const auto& glass = props.at("mat-raysweep_glass");
     EXPECT_NEAR(glass.at("relative_permittivity"), 6.31, 1e-12);
     EXPECT_NEAR(glass.at("conductivity"), 0.0036 * std::pow(f_ghz, 1.3394), 1e-9);
