@@ -103,6 +103,52 @@ def utd_pec_soft(n, phi, phi_i, length, k):
     return pre * (d1 + d2 - (d3 + d4))
 
 
+def er_wall_power(mat, f, step=0.1):
+    """First-order diffuse path gain of the rough wall x = 0 (y in [-50, 50],
+    z in [0, 20]) between (5, -10, 1.5) and (5, 10, 1.5), effective roughness
+    (Degli-Esposti 2007) as an energy balance: of the power a smooth surface
+    would reflect, S^2 is scattered with a directive lobe ((1 + cos psi_R) /
+    2)^alpha_R normalised over the hemisphere. dG = lambda^2 S^2 |R|^2 f
+    cos(theta_i) dA / (16 pi^2 r_i^2 r_s^2); the vertical E field splits
+    between TE and TM by the tilt of each element's plane of incidence."""
+    lam = C0 / f
+    e = eta(mat, f)
+    sc, alpha = mat["scattering_coefficient"], int(mat["alpha_r"])
+    ys = np.arange(-50 + step / 2, 50, step)
+    zs = np.arange(step / 2, 20, step)
+    y, z = np.meshgrid(ys, zs)
+    tx, rx = np.array([5.0, -10.0, 1.5]), np.array([5.0, 10.0, 1.5])
+    p = np.stack([np.zeros_like(y), y, z], axis=-1)
+    vi, vs = p - tx, rx - p
+    ri, rs = np.linalg.norm(vi, axis=-1), np.linalg.norm(vs, axis=-1)
+    ki, ks = vi / ri[..., None], vs / rs[..., None]
+    n = np.array([1.0, 0, 0])
+    cos_i = -(ki @ n)
+    spec = ki + 2 * cos_i[..., None] * n
+    cos_psi = np.sum(spec * ks, axis=-1)
+    # lobe normalisation over the hemisphere x > 0, per incidence angle
+    th = np.linspace(0, math.pi / 2, 181)[:-1] + math.pi / 360
+    ph = np.linspace(0, 2 * math.pi, 361)[:-1] + math.pi / 360
+    tt, pp = np.meshgrid(th, ph)
+    dirs = np.stack([np.cos(tt), np.sin(tt) * np.cos(pp), np.sin(tt) * np.sin(pp)], axis=-1)
+    d_omega = np.sin(tt) * (math.pi / 360) * (math.pi / 180)  # 0.5 deg in theta, 1 deg in phi
+
+    def norm_at(cos_t):
+        s_dir = np.array([cos_t, math.sqrt(max(0.0, 1 - cos_t ** 2)), 0.0])
+        return np.sum(((1 + dirs @ s_dir) / 2) ** alpha * d_omega)
+    table_c = np.linspace(0, 1, 201)
+    table_f = np.array([norm_at(c) for c in table_c])
+    lobe = ((1 + cos_psi) / 2) ** alpha / np.interp(cos_i, table_c, table_f)
+    r_te, r_tm = interface(e, cos_i) if mat["thickness_m"] == 0 else slab(e, cos_i, mat["thickness_m"], lam)[0]
+    # share of the vertical field perpendicular to the plane of incidence (TE)
+    te_dir = np.cross(ki, n)
+    te_norm = np.linalg.norm(te_dir, axis=-1)
+    te_share = np.where(te_norm > 0, (te_dir[..., 2] / np.maximum(te_norm, 1e-12)) ** 2, 1.0)
+    r2 = te_share * np.abs(r_te) ** 2 + (1 - te_share) * np.abs(r_tm) ** 2
+    dg = lam ** 2 * sc ** 2 * r2 * lobe * cos_i / (16 * math.pi ** 2 * ri ** 2 * rs ** 2) * step * step
+    return float(np.sum(dg))
+
+
 def db(a):
     return 20 * math.log10(abs(a)) if abs(a) > 0 else float("-inf")
 
@@ -184,6 +230,14 @@ def cases():
                     ["tracer.max_depth=1", "tracer.diffuse=false", "tracer.diffraction_reflection=false",
                      "tracer.vehicle_diffraction=false", "tracer.refraction=false"],
                     {"max_depth": 1, "refraction": False, "diffraction": True})
+    # A rough concrete wall: S = 0.4, directive lobe alpha_R = 4, no cross-
+    # polarisation; the first-order diffuse power of tiles, rays and Sionna.
+    rough = quad([0, -50, 0], [0, 100, 0], [0, 0, 20])
+    out["rough"] = ([("wall", "concrete", *rough)], [("d1", 5, -10, 1.5), ("d2", 5, 10, 1.5)],
+                    ["tracer.max_depth=1", "tracer.diffraction=false", "tracer.refraction=false",
+                     "tracer.vehicle_diffraction=false", "tracer.diffuse=true", "tracer.path_threshold_db=0",
+                     "materials.concrete.xpd=0"],
+                    {"max_depth": 1, "refraction": False, "diffraction": False, "diffuse": True})
     return out
 
 # ----------------------------------------------------------------- closed-form paths
@@ -216,6 +270,8 @@ def closed_forms(name, peer):
         rows.append((("r1", "r2"), "los", lam / (4 * math.pi * 20) * np.exp(-1j * k * 20)))
         _, (t_te, _) = slab(e, 1.0, d_slab, lam)
         rows.append((("t1", "t2"), "refraction", t_te * lam / (4 * math.pi * 10) * np.exp(-1j * k * 10)))
+    elif name == "rough":
+        rows.append((("d1", "d2"), "diffuse", math.sqrt(er_wall_power(mats["concrete"], f))))
     elif name == "wedge":
         tx, edge = np.array([-10, 10, 1.5]), np.array([0, 0, 1.5])
 
@@ -272,8 +328,12 @@ def sionna_side(spec_file):
         scene.add(rt.Transmitter(name="tx-" + n["id"], position=mi.Point3f(*n["position"])))
         scene.add(rt.Receiver(name="rx-" + n["id"], position=mi.Point3f(*n["position"])))
     flags = spec["flags"]
+    for name, mat in scene.radio_materials.items():
+        m = peer["materials"].get(name.replace("raysweep_", ""), {})
+        if m.get("lobe") == "directive":
+            mat.scattering_pattern = rt.DirectivePattern(alpha_r=int(m["alpha_r"]))
     paths = rt.PathSolver()(scene, max_depth=flags["max_depth"], los=True, specular_reflection=True,
-                            diffuse_reflection=False, refraction=flags["refraction"],
+                            diffuse_reflection=flags.get("diffuse", False), refraction=flags["refraction"],
                             diffraction=flags["diffraction"], edge_diffraction=False,
                             samples_per_src=10 ** 6, max_num_paths_per_src=10 ** 5, synthetic_array=True, seed=1)
     # [rx, rx_ant, tx, tx_ant, path] (one antenna each) -> [rx, tx, path]
@@ -323,6 +383,9 @@ def sionna_paths(peer_dir, flags, work, frequency):
 
 
 def pick(found, pair, kind):
+    if kind == "diffuse":  # the power of all diffuse paths, as one amplitude
+        vals = found.get((pair, kind), [])
+        return math.sqrt(sum(abs(v) ** 2 for v in vals)) if vals else None
     if kind == "sum":
         vals = found.get((pair, "los"), []) + found.get((pair, "specular"), [])
         return sum(vals) if vals else None
