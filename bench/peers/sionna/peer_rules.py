@@ -1,0 +1,139 @@
+"""The rules both tools' paths go through before they are compared.
+
+Imported by `compare` (Debian's Python) and by `sionna_paths.py` (the peer's
+virtual environment, for its convergence test), so both sides apply the very
+same rules. numpy only.
+
+A path is a row of interaction codes, Sionna's `InteractionType` bits (0 none,
+1 specular, 2 diffuse, 4 refraction, 8 diffraction), padded with 0, plus a flag
+per interaction telling whether it lies on a vehicle.
+"""
+import math
+
+import numpy as np
+
+NONE, SPECULAR, DIFFUSE, REFRACTION, DIFFRACTION = 0, 1, 2, 4, 8
+CODE = {"specular": SPECULAR, "diffuse": DIFFUSE, "refraction": REFRACTION, "diffraction": DIFFRACTION}
+LETTER = {SPECULAR: "R", DIFFUSE: "S", REFRACTION: "T", DIFFRACTION: "D"}
+# Mechanism of a path: the first that applies, in this order.
+MECHANISMS = ["los", "specular", "refraction", "diffraction", "diffuse"]
+C_LIGHT = 299792458.0
+# Peak gain (dBi) of raysweep's antennas: the range cut uses it on both ends.
+PEAK_GAIN_DBI = {"isotropic": 0.0, "dipole": 10 * math.log10(1.5), "halfwave": 10 * math.log10(1.641)}
+
+
+def counts(types):
+    """Per path: reflections, diffuse, refractions, diffractions."""
+    t = np.asarray(types)
+    return [(t == c).sum(axis=1) for c in (SPECULAR, DIFFUSE, REFRACTION, DIFFRACTION)]
+
+
+def mechanism(types):
+    """Index into MECHANISMS: diffuse if any diffuse interaction, else diffraction
+    if any, else refraction if any, else specular if any reflection, else LoS."""
+    spec, dif, refr, dfr = counts(types)
+    m = np.zeros(len(spec), dtype=np.int8)
+    m[spec > 0] = 1
+    m[refr > 0] = 2
+    m[dfr > 0] = 3
+    m[dif > 0] = 4
+    return m
+
+
+def in_model(types, on_vehicle, tracer):
+    """Paths of the classes raysweep traces with these [tracer] settings (the
+    peer may find longer or mixed ones: its depth counts every interaction).
+
+    - LoS, reflections and slabs: at most max_depth reflections and at most
+      max_transmissions slabs (raysweep caps them separately);
+    - diffraction: one edge, no slab, no diffuse; with diffraction_reflection
+      one reflection on a static face before or after it; on a vehicle's edge
+      (vehicle_edge_diffraction) nothing else;
+    - diffuse: one scattering, which counts as a bounce (reflections + 1 <=
+      max_depth), slabs within max_transmissions, no edge.
+    """
+    t = np.asarray(types)
+    veh = np.asarray(on_vehicle, dtype=bool)
+    spec, dif, refr, dfr = counts(t)
+    depth = int(tracer.get("max_depth", 3))
+    slabs = int(tracer.get("max_transmissions", 2)) if tracer.get("refraction", True) else 0
+    plain = (dfr == 0) & (dif == 0) & (spec <= depth) & (refr <= slabs)
+    refl_max = 1 if tracer.get("diffraction_reflection", True) else 0
+    veh_edge = ((t == DIFFRACTION) & veh).any(axis=1)
+    veh_refl = ((t == SPECULAR) & veh).any(axis=1)
+    edge = (dfr == 1) & (dif == 0) & (refr == 0) & (spec <= refl_max) & ~veh_refl
+    edge &= ~veh_edge | ((spec == 0) & bool(tracer.get("vehicle_edge_diffraction", False)))
+    diffuse = (dif == 1) & (dfr == 0) & (spec + 1 <= depth) & (refr <= slabs)
+    return plain | edge | diffuse
+
+
+def duplicates(pair, tau, types, objects, tol_s=1e-12):
+    """Paths that repeat an earlier one of their pair: the same interactions on
+    the same objects and a delay within tol_s (Sionna can return one path twice,
+    found through two hashes of its candidate chain)."""
+    n = len(pair)
+    if n == 0:
+        return np.zeros(0, dtype=bool)
+    order = np.lexsort((tau, pair))
+    p, t = pair[order], tau[order]
+    ty, ob = np.asarray(types)[order], np.asarray(objects)[order]
+    dup = np.zeros(n, dtype=bool)
+    for lag in range(1, 4):  # coincident delays of different paths interleave
+        same = (p[lag:] == p[:-lag]) & (np.abs(t[lag:] - t[:-lag]) < tol_s)
+        same &= (ty[lag:] == ty[:-lag]).all(axis=1) & (ob[lag:] == ob[:-lag]).all(axis=1)
+        dup[lag:] |= same
+    out = np.zeros(n, dtype=bool)
+    out[order] = dup
+    return out
+
+
+def keep_above_threshold(pair, power, threshold_db):
+    """raysweep's path_threshold_db: drop paths this far below their pair's
+    strongest (<= 0: keep all)."""
+    if threshold_db <= 0 or len(power) == 0:
+        return np.ones(len(power), dtype=bool)
+    strongest = np.zeros(pair.max() + 1)
+    np.maximum.at(strongest, pair, power)
+    return power >= strongest[pair] * 10 ** (-threshold_db / 10)
+
+
+def max_range_m(radio, tracer):
+    """raysweep's range cut: the free-space reach of the sensitivity with the
+    antennas' peak gains and range_margin_db; pairs farther apart carry no paths."""
+    g = PEAK_GAIN_DBI.get(radio.get("antenna", "isotropic"), 0.0)
+    budget = radio["tx_power_dbm"] - radio["sensitivity_dbm"] + 2 * g + tracer.get("range_margin_db", 6.0)
+    lam = C_LIGHT / radio["frequency_hz"]
+    return lam / (4 * math.pi) * 10 ** (budget / 20)
+
+
+def gain_db(power_sum):
+    """10 log10 of summed |a|^2; -inf for no paths."""
+    p = np.asarray(power_sum, dtype=float)
+    with np.errstate(divide="ignore"):
+        return np.where(p > 0, 10 * np.log10(np.maximum(p, 1e-300)), -np.inf)
+
+
+def pair_power(pair, power, n_pairs):
+    out = np.zeros(n_pairs)
+    np.add.at(out, pair, power)
+    return out
+
+
+def converged(prev_db, cur_db, tol_db=0.1, max_db=1.0, quantile=95):
+    """The convergence test of `--converge`: the same set of pairs has paths,
+    the p95 over those pairs of |change| in incoherent gain is below tol_db and
+    the largest change below max_db. Returns (ok, p95 change, max change, same set)."""
+    prev_db, cur_db = np.asarray(prev_db), np.asarray(cur_db)
+    same_set = bool(np.array_equal(np.isfinite(prev_db), np.isfinite(cur_db)))
+    both = np.isfinite(prev_db) & np.isfinite(cur_db)
+    d = np.abs(cur_db[both] - prev_db[both])
+    p95 = float(np.percentile(d, quantile)) if len(d) else 0.0
+    worst = float(d.max()) if len(d) else 0.0
+    return same_set and p95 < tol_db and worst < max_db, p95, worst, same_set
+
+
+def signature(types):
+    """A path's interaction sequence in letters (R reflection, T slab, D edge,
+    S diffuse; LoS for none)."""
+    s = "".join(LETTER[int(c)] for c in types if int(c) in LETTER)
+    return s or "LoS"
