@@ -203,3 +203,12 @@ TEST(CliPeerExport, NothingToWriteIsAnError) {
   EXPECT_NE(r.exit_code, 0);
   EXPECT_NE(r.output.find("--out and/or --mitsuba"), std::string::npos) << r.output;
 }
+
+// The rules the Sionna comparison applies to both tools' paths
+// (bench/peers/sionna/peer_rules.py), on hand-made paths; no peer needed.
+TEST(CliPeerExport, PeerRulesClassifyAndFilterHandMadePaths) {
+  const fs::path src = source_dir();
+  const auto r = run_command("PYTHONPATH='" + (src / "bench/peers/sionna").string() + "' /usr/bin/python3 '" +
+                             (src / "tests/python/test_peer_rules.py").string() + "'");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+}

@@ -1,0 +1,111 @@
+#!/usr/bin/python3
+"""Checks bench/peers/sionna/peer_rules.py, the rules both tools' paths go
+through before the Sionna RT comparison, on hand-made paths: which classes
+raysweep traces, duplicates, the path threshold, the range cut against Friis,
+the convergence test. Runs without the peer (numpy only).
+
+usage: PYTHONPATH=bench/peers/sionna test_peer_rules.py
+Exits 0 when every check passes; prints the failures and exits 1 otherwise.
+"""
+import math
+import sys
+
+import numpy as np
+
+import peer_rules as rules
+
+R, S, T, D = rules.SPECULAR, rules.DIFFUSE, rules.REFRACTION, rules.DIFFRACTION
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what)
+
+
+def in_model(paths, tracer, vehicle=None):
+    types = np.array([p + [0] * (5 - len(p)) for p in paths])
+    veh = np.zeros(types.shape, dtype=bool) if vehicle is None else np.array(vehicle)
+    return rules.in_model(types, veh, tracer).tolist()
+
+
+def classes():
+    tracer = {"max_depth": 3, "max_transmissions": 2, "diffraction_reflection": True}
+    got = in_model([[], [R, R, R], [R, R, R, R], [T, T], [T, T, T], [T, R, R, R, T], [T, R, R, R, R]], tracer)
+    check(got == [True, True, False, True, False, True, False], f"reflections and slabs capped apart: {got}")
+    got = in_model([[D], [R, D], [D, R], [R, D, R], [D, T], [D, D]], tracer)
+    check(got == [True, True, True, False, False, False], f"one edge, one static reflection: {got}")
+    got = in_model([[R, D]], dict(tracer, diffraction_reflection=False))
+    check(got == [False], "no reflection beside the edge when diffraction_reflection is off")
+    # An edge on a vehicle: alone only, and only with vehicle_edge_diffraction.
+    on_veh = [[True, False, False, False, False]]
+    check(in_model([[D]], tracer, on_veh) == [False], "a vehicle's edge without vehicle_edge_diffraction")
+    check(in_model([[D]], dict(tracer, vehicle_edge_diffraction=True), on_veh) == [True], "a vehicle's edge")
+    got = in_model([[D, R]], dict(tracer, vehicle_edge_diffraction=True), [[False, True, False, False, False]])
+    check(got == [False], "an edge with a reflection on a vehicle")
+    got = in_model([[S], [R, R, S], [R, R, R, S], [T, S, T], [S, D]], tracer)
+    check(got == [True, True, False, True, False], f"a scattering counts as a bounce: {got}")
+
+
+def mechanisms():
+    types = np.array([[0, 0], [R, 0], [R, T], [D, R], [R, S]])
+    got = [rules.MECHANISMS[m] for m in rules.mechanism(types)]
+    check(got == ["los", "specular", "refraction", "diffraction", "diffuse"], f"mechanisms: {got}")
+    check(rules.signature([R, T, 0]) == "RT" and rules.signature([0, 0]) == "LoS", "signatures")
+
+
+def duplicates():
+    pair = np.array([0, 0, 0, 1, 0])
+    tau = np.array([1e-6, 1e-6 + 1e-13, 1e-6, 1e-6, 2e-6])
+    types = np.array([[R, 0], [R, 0], [R, 0], [R, 0], [R, 0]])
+    objects = np.array([[3, 0], [3, 0], [4, 0], [3, 0], [3, 0]])
+    got = rules.duplicates(pair, tau, types, objects).tolist()
+    # Only the second repeats an earlier path: the third is another object,
+    # the fourth another pair, the fifth another delay.
+    check(got == [False, True, False, False, False], f"duplicates: {got}")
+    check(rules.duplicates(np.array([], int), np.array([]), np.zeros((0, 2)), np.zeros((0, 2))).size == 0,
+          "no paths, no duplicates")
+
+
+def threshold_and_power():
+    pair = np.array([0, 0, 0, 1])
+    power = np.array([1.0, 1e-7, 1e-5, 1e-9])
+    got = rules.keep_above_threshold(pair, power, 60).tolist()
+    check(got == [True, False, True, True], f"60 dB below the pair's strongest: {got}")
+    check(rules.keep_above_threshold(pair, power, 0).all(), "threshold 0 keeps all")
+    g = rules.gain_db(rules.pair_power(pair, power, 3))
+    check(abs(g[0] - 10 * math.log10(1 + 1e-7 + 1e-5)) < 1e-12 and g[2] == -math.inf, f"pair gains: {g}")
+
+
+def range_cut():
+    radio = {"antenna": "dipole", "tx_power_dbm": 20.0, "sensitivity_dbm": -92.0, "frequency_hz": 5.9e9}
+    d = rules.max_range_m(radio, {"range_margin_db": 6.0})
+    # Friis with both dipoles' peak gain (1.5 each): the loss at d equals the budget.
+    lam = 299792458.0 / 5.9e9
+    friis_db = 20 * math.log10(4 * math.pi * d / lam) - 2 * 10 * math.log10(1.5)
+    check(abs(friis_db - (20 + 92 + 6)) < 1e-9, f"range cut: Friis {friis_db} dB at {d} m")
+
+
+def convergence():
+    prev = np.array([-80.0, -100.0, -np.inf, -120.0])
+    ok, p95, worst, same = rules.converged(prev, prev + np.array([0.01, -0.02, 0, 0.05]))
+    check(ok and same and abs(worst - 0.05) < 1e-12, f"converged: {ok} {p95} {worst}")
+    ok, _, _, same = rules.converged(prev, np.array([-80.0, -100.0, -130.0, -120.0]))
+    check(not ok and not same, "a pair that gains paths is not converged")
+    ok, _, worst, _ = rules.converged(prev, prev + np.array([0, 0, 0, 2.0]))
+    check(not ok and worst == 2.0, "a 2 dB change is not converged")
+
+
+def main():
+    for f in (classes, mechanisms, duplicates, threshold_and_power, range_cut, convergence):
+        f()
+    if failures:
+        print(f"{len(failures)} check(s) failed")
+        return 1
+    print("all checks passed")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
