@@ -56,14 +56,15 @@ def mechanisms():
 
 
 def duplicates():
-    pair = np.array([0, 0, 0, 1, 0])
-    tau = np.array([1e-6, 1e-6 + 1e-13, 1e-6, 1e-6, 2e-6])
-    types = np.array([[R, 0], [R, 0], [R, 0], [R, 0], [R, 0]])
-    objects = np.array([[3, 0], [3, 0], [4, 0], [3, 0], [3, 0]])
+    pair = np.array([0, 0, 0, 1, 0, 0])
+    tau = np.array([1e-6, 1e-6 + 7e-12, 1e-6, 1e-6, 1e-6 + 1e-10, 2e-6])
+    types = np.array([[R, 0], [R, 0], [R, 0], [R, 0], [R, 0], [R, 0]])
+    objects = np.array([[3, 0], [3, 0], [4, 0], [3, 0], [3, 0], [3, 0]])
     got = rules.duplicates(pair, tau, types, objects).tolist()
-    # Only the second repeats an earlier path: the third is another object,
-    # the fourth another pair, the fifth another delay.
-    check(got == [False, True, False, False, False], f"duplicates: {got}")
+    # Only the second repeats an earlier path (2 mm longer: single-precision
+    # copies): the third is another object, the fourth another pair, the
+    # fifth 3 cm longer, the sixth another delay altogether.
+    check(got == [False, True, False, False, False, False], f"duplicates: {got}")
     check(rules.duplicates(np.array([], int), np.array([]), np.zeros((0, 2)), np.zeros((0, 2))).size == 0,
           "no paths, no duplicates")
 

@@ -67,10 +67,13 @@ def in_model(types, on_vehicle, tracer):
     return plain | edge | diffuse
 
 
-def duplicates(pair, tau, types, objects, tol_s=1e-12):
+def duplicates(pair, tau, types, objects, tol_s=2e-11):
     """Paths that repeat an earlier one of their pair: the same interactions on
-    the same objects and a delay within tol_s (Sionna can return one path twice,
-    found through two hashes of its candidate chain)."""
+    the same objects and a delay within tol_s (Sionna can return one path
+    several times, found through two hashes of its candidate chain or through
+    coplanar triangles of one wall). 2e-11 s is 6 mm: Sionna computes in
+    single precision, and at Bad Hersfeld's SUMO coordinates (8 km from the
+    origin, 1 mm per float ulp) copies of one path differ by up to 2 mm."""
     n = len(pair)
     if n == 0:
         return np.zeros(0, dtype=bool)
