@@ -208,7 +208,8 @@ TEST(CliPeerExport, NothingToWriteIsAnError) {
 // (bench/peers/sionna/peer_rules.py), on hand-made paths; no peer needed.
 TEST(CliPeerExport, PeerRulesClassifyAndFilterHandMadePaths) {
   const fs::path src = source_dir();
-  const auto r = run_command("PYTHONPATH='" + (src / "bench/peers/sionna").string() + "' /usr/bin/python3 '" +
+  const auto r = run_command("PYTHONPATH='" + (src / "bench/peers/sionna").string() + ":" + (src / "python").string() +
+                             "' /usr/bin/python3 '" +
                              (src / "tests/python/test_peer_rules.py").string() + "'");
   EXPECT_EQ(r.exit_code, 0) << r.output;
 }

@@ -2,9 +2,9 @@
 """Checks bench/peers/sionna/peer_rules.py, the rules both tools' paths go
 through before the Sionna RT comparison, on hand-made paths: which classes
 raysweep traces, duplicates, the path threshold, the range cut against Friis,
-the convergence test. Runs without the peer (numpy only).
+the convergence test. Runs without the peer.
 
-usage: PYTHONPATH=bench/peers/sionna test_peer_rules.py
+usage: PYTHONPATH=bench/peers/sionna:python test_peer_rules.py
 Exits 0 when every check passes; prints the failures and exits 1 otherwise.
 """
 import math
@@ -13,15 +13,9 @@ import sys
 import numpy as np
 
 import peer_rules as rules
+from test_reader import check, report
 
 R, S, T, D = rules.SPECULAR, rules.DIFFUSE, rules.REFRACTION, rules.DIFFRACTION
-failures = []
-
-
-def check(cond, what):
-    if not cond:
-        failures.append(what)
-        print("FAIL:", what)
 
 
 def in_model(paths, tracer, vehicle=None):
@@ -101,11 +95,7 @@ def convergence():
 def main():
     for f in (classes, mechanisms, duplicates, threshold_and_power, range_cut, convergence):
         f()
-    if failures:
-        print(f"{len(failures)} check(s) failed")
-        return 1
-    print("all checks passed")
-    return 0
+    return report()
 
 
 if __name__ == "__main__":
