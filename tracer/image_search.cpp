@@ -111,6 +111,25 @@ void build_sphere_tree(const std::vector<TraceScene::Sphere>& spheres, const std
   build_sphere_tree(spheres, tols, tree, order, mid, e);
 }
 
+// ImageFaces::ground_planes from ImageFaces::ground. Bitwise equality only,
+// so that a plane's mirror images are bitwise each face's own (negating a
+// normal and its offset negates a distance and leaves every image and
+// crossing point as it was).
+void group_ground_planes(ImageFaces& t) {
+  for (const std::uint32_t g : t.ground) {
+    const Plane& pg = t.planes[g];
+    auto same = [&](const ImageFaces::GroundPlane& gp, double sign) {
+      return pg.offset == sign * gp.plane.offset && pg.normal[0] == sign * gp.plane.normal[0] &&
+             pg.normal[1] == sign * gp.plane.normal[1] && pg.normal[2] == sign * gp.plane.normal[2];
+    };
+    auto it = std::find_if(t.ground_planes.begin(), t.ground_planes.end(),
+                           [&](const auto& gp) { return same(gp, 1) || same(gp, -1); });
+    if (it == t.ground_planes.end()) it = t.ground_planes.insert(it, {pg, {}, {}});
+    it->faces.push_back(g);
+    it->flipped.push_back(same(*it, 1) ? 0 : 1);
+  }
+}
+
 }  // namespace
 
 ImageFaces image_faces(const TraceScene& scene) {
@@ -145,6 +164,7 @@ ImageFaces image_faces(const TraceScene& scene) {
   for (const auto& sv : t.vehicle_spheres) push_sphere(sv, 0);
   for (std::uint32_t f = 0; f < t.static_count; ++f)
     if (scene.is_ground(f)) t.ground.push_back(f);
+  group_ground_planes(t);
   for (std::uint32_t f = 0; f < t.static_count; ++f)
     if (t.spheres[f].radius < ImageFaces::kSmallFace) t.small.push_back(f);
   std::vector<std::array<Vec3, 3>> tris;
@@ -564,8 +584,8 @@ class ImageSearch : public SourceSearch {
   //   ground plane (apex I1', I1's image), walks the sphere tree as f1's own
   //   beam does, and I2 is the image of I1' in f2.
   void static_pairs(bool ground3) {
-    static const std::vector<std::uint32_t> no_faces;
-    grounds = ground3 ? &faces.ground : &no_faces;
+    static const std::vector<ImageFaces::GroundPlane> no_planes;
+    grounds = ground3 ? &faces.ground_planes : &no_planes;
     mirror_receivers();
     for (std::uint32_t f1 = 0; f1 < faces.static_count; ++f1) from_first_face(f1);
   }
@@ -573,12 +593,13 @@ class ImageSearch : public SourceSearch {
  private:
   const std::uint32_t src;
   const std::size_t higher_from;  // the first receiver above the source
-  // static_pairs' state: the ground faces for order 3 (none without it),
+  // static_pairs' state: the ground planes for order 3 (none without it),
   // every receiver's image in each of them (relative to the source), the
   // beams' pyramids and the tree walk's stack.
-  const std::vector<std::uint32_t>* grounds = nullptr;
+  const std::vector<ImageFaces::GroundPlane>* grounds = nullptr;
   Receivers mirrored;
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground face, receiver index)
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> mirrored_of;  // (ground plane, receiver index)
+  std::vector<std::uint32_t> ground_set, ground_sub;  // ground faces of one plane still in play
   std::vector<Vec3> pyramid, pyramid_g;
   std::vector<std::uint32_t> tree_stack;
 
@@ -661,17 +682,17 @@ class ImageSearch : public SourceSearch {
     }
   }
 
-  // Every receiver's image in each ground face of `grounds`.
+  // Every receiver's image in each ground plane of `grounds`.
   void mirror_receivers() {
-    for (std::uint32_t g : *grounds) {
-      const Plane& pg = faces.planes[g];
+    for (std::uint32_t k = 0; k < grounds->size(); ++k) {
+      const Plane& pg = (*grounds)[k].plane;
       for (std::size_t r = 0; r < rx.size(); ++r) {
         const Vec3 xr = receiver(r);
         const double d = dot(pg.normal, xr) - pg.offset;
         if (d == 0) continue;  // on the ground plane: no image
         const Vec3 m = xr - (2 * d) * pg.normal - xs;
         mirrored.push(m);
-        mirrored_of.emplace_back(g, static_cast<std::uint32_t>(r));
+        mirrored_of.emplace_back(k, static_cast<std::uint32_t>(r));
       }
     }
   }
@@ -721,7 +742,7 @@ class ImageSearch : public SourceSearch {
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
     walk_beam(b1, beam, p1, ds, f1, [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
-    for (std::uint32_t g : *grounds) ground_between(b1, beam, g);
+    for (const auto& gp : *grounds) ground_between(b1, beam, gp);
   }
 
   // Whether sphere sp (+ tol) lies outside beam b. (`spread`: a node's faces
@@ -814,54 +835,83 @@ class ImageSearch : public SourceSearch {
     ground_last(b1, b2);
   }
 
-  // Order 3 (f1, f2, ground) towards the mirrored receivers marked.
+  // Order 3 (f1, f2, ground) towards the mirrored receivers marked: the
+  // image and the point on the plane once, then each of its faces.
   void ground_last(const FirstBounce& b1, const SecondBounce& b2) {
     const std::uint32_t f1 = b1.f1, f2 = b2.f2;
     const Plane& p2 = b2.p2;
     for (std::size_t m = 0; m < mirrored.size(); ++m) {
-      const auto [g, r] = mirrored_of[m];
-      if (!mirrored.hit[m] || g == f2) continue;
+      if (!mirrored.hit[m]) continue;
+      const auto [k, r] = mirrored_of[m];
+      const auto& gp = (*grounds)[k];
       // Ground, f2, ground: after the first ground reflection the path
       // leaves the ground's plane, and a face perpendicular to it (a
       // wall) keeps that component: it never comes back.
-      if (g == f1 && std::fabs(dot(p2.normal, faces.planes[g].normal)) < 1e-9) continue;
+      const bool g_f2_g = std::fabs(dot(p2.normal, gp.plane.normal)) < 1e-9;
+      auto excluded = [&](std::uint32_t g) { return g == f2 || (g == f1 && g_f2_g); };
+      if (std::all_of(gp.faces.begin(), gp.faces.end(), excluded)) continue;
       const Vec3 xr = receiver(r), xm = Vec3{mirrored.x[m], mirrored.y[m], mirrored.z[m]} + xs;
       Vec3 q2;
       if (!back_to_f1(b1, b2, xm, q2)) continue;
       // The last leg, from q2 down to the ground and up to the receiver.
-      const Plane& pg = faces.planes[g];
+      const Plane& pg = gp.plane;
       const double dq = dot(pg.normal, q2) - pg.offset, dr = dot(pg.normal, xr) - pg.offset;
-      if (dq * dr > 0 && on_face(g, crossing(xm, -dr, q2, dq)))
-        out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
+      if (!(dq * dr > 0)) continue;
+      const Vec3 qg = crossing(xm, -dr, q2, dq);
+      for (const std::uint32_t g : gp.faces)
+        if (!excluded(g) && on_face(g, qg))
+          out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2], faces.refs[g]}});
     }
   }
 
-  // Order 3 (f1, ground g, f2): f1's beam mirrored in g, when it reaches g.
-  void ground_between(const FirstBounce& b1, const Beam& beam, std::uint32_t g) {
+  // Order 3 (f1, ground g, f2): f1's beam mirrored in the ground plane, for
+  // the faces of it that the beam reaches.
+  void ground_between(const FirstBounce& b1, const Beam& beam, const ImageFaces::GroundPlane& gp) {
     const std::uint32_t f1 = b1.f1;
-    if (g == f1 || !scene.static_face_reaches(f1, b1.ds > 0 ? 1 : -1, g)) return;
-    if (outside_beam(b1, beam, faces.spheres[g], faces.tol[g], 0)) return;
-    const Plane& pg = faces.planes[g];
+    const Plane& pg = gp.plane;
     const double dg = dot(pg.normal, b1.i1) - pg.offset;
     if (dg == 0) return;
+    ground_set.clear();
+    for (std::size_t j = 0; j < gp.faces.size(); ++j) {
+      const std::uint32_t g = gp.faces[j];
+      if (g == f1 || !scene.static_face_reaches(f1, b1.ds > 0 ? 1 : -1, g)) continue;
+      if (outside_beam(b1, beam, faces.spheres[g], faces.tol[g], 0)) continue;
+      ground_set.push_back(static_cast<std::uint32_t>(j));
+    }
+    if (ground_set.empty()) return;
     const Vec3 i1g = b1.i1 - (2 * dg) * pg.normal;
     auto mirror = [&](const Vec3& v) { return v - (2 * dot(pg.normal, v)) * pg.normal; };
     pyramid_g.clear();
     for (const auto& nrm : pyramid) pyramid_g.push_back(mirror(nrm));
     Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
     bg.cone.axis = mirror(beam.cone.axis);
-    // After the ground the path runs on I1's side of it (q2 with I1).
-    walk_beam(b1, bg, pg, dg, g, [&](std::uint32_t f2) {
-      if (f2 != g) after_ground(b1, g, dg, i1g, f2);
-    });
+    // After the ground the path runs on I1's side of it (q2 with I1): f2
+    // must reach that side of each face g (its own orientation).
+    walk_static_tree(
+        faces, tree_stack,
+        [&](const TraceScene::Sphere& sp, double tol) {
+          const double h = dot(pg.normal, sp.centre) - pg.offset;
+          if ((dg > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
+          return outside_beam(b1, bg, sp, tol, sp.radius);
+        },
+        [&](std::uint32_t f2) {
+          ground_sub.clear();
+          for (const std::uint32_t j : ground_set) {
+            const std::uint32_t g = gp.faces[j];
+            if (f2 != g && scene.static_face_reaches(g, (dg > 0) != (gp.flipped[j] != 0) ? 1 : -1, f2))
+              ground_sub.push_back(g);
+          }
+          if (ground_sub.empty() || outside_beam(b1, bg, faces.spheres[f2], faces.tol[f2], 0)) return;
+          after_ground(b1, pg, dg, i1g, f2);
+        });
   }
 
   // Order 3 (f1, g, f2) through second face f2 of the mirrored beam (apex
-  // i1g, at distance dg from g's plane), towards the higher receivers.
-  void after_ground(const FirstBounce& b1, std::uint32_t g, double dg, const Vec3& i1g, std::uint32_t f2) {
+  // i1g, at distance dg from the ground plane pg), towards the higher
+  // receivers, for each face g of ground_sub.
+  void after_ground(const FirstBounce& b1, const Plane& pg, double dg, const Vec3& i1g, std::uint32_t f2) {
     const std::uint32_t f1 = b1.f1;
     const Plane& p1 = b1.p1;
-    const Plane& pg = faces.planes[g];
     const auto& s2 = faces.spheres[f2];
     const Plane& p2 = faces.planes[f2];
     double di;
@@ -880,10 +930,15 @@ class ImageSearch : public SourceSearch {
       const double dq = dot(pg.normal, q2) - pg.offset;
       if (!(dg * dq > 0)) continue;
       const Vec3 qg = crossing(i1g, -dg, q2, dq);
-      if (!on_face(g, qg)) continue;
       const double d1 = dot(p1.normal, qg) - p1.offset;
-      if (b1.ds * d1 > 0 && on_face(f1, crossing(b1.i1, -b1.ds, qg, d1)))
+      if (!(b1.ds * d1 > 0)) continue;
+      int first_leg = -1;  // whether f1 holds the first point: tested once, when a face holds qg
+      for (const std::uint32_t g : ground_sub) {
+        if (!on_face(g, qg)) continue;
+        if (first_leg < 0) first_leg = on_face(f1, crossing(b1.i1, -b1.ds, qg, d1)) ? 1 : 0;
+        if (first_leg == 0) break;
         out.push_back({receivers[r], {faces.refs[f1], faces.refs[g], faces.refs[f2]}});
+      }
     }
   }
 };

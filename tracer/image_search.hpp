@@ -69,6 +69,15 @@ struct ImageFaces {
   } beam_spheres;
   std::uint32_t beam_vehicles_begin = 0;  // where the vehicles' spheres start in beam_spheres
   std::vector<std::uint32_t> ground;         // static faces that are ground (TraceScene::is_ground)
+  // The ground faces by plane (bitwise the same plane, either orientation:
+  // a ground split into patches, building floors at its level): one mirror
+  // image per receiver and one mirrored beam serve every face of a plane.
+  struct GroundPlane {
+    Plane plane;                        // its first face's
+    std::vector<std::uint32_t> faces;   // ascending
+    std::vector<signed char> flipped;   // per face: its normal is -plane.normal
+  };
+  std::vector<GroundPlane> ground_planes;
   // Static faces of vehicle size or less (bounding radius under kSmallFace:
   // a kerb-side box, a bus shelter's side): shoot and bounce's rays pass
   // them as they pass vehicles, so BeamPair marks them by the same widened
