@@ -462,6 +462,10 @@ Subcommand tradeoff_command(CLI::App& app) {
   to->add_option("--target-p95", tradeoff.target_p95_db,
                  "suggest the cheapest setting within this 95th-percentile gain error (dB)")
       ->capture_default_str();
+  to->add_option("--coherence-window", tradeoff.coherence_window,
+                 "frames swept with [sweep] coherence off and on, from the first with two vehicles (default 20; "
+                 "--quick 4; 0: none)")
+      ->check(CLI::Range(0, 1000));
   to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
   to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
   add_set_option(to, tradeoff.set);

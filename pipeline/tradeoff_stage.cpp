@@ -27,6 +27,7 @@
 #include "pipeline/settings/tables.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
+#include "pipeline/tradeoff_coherence.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/version.hpp"
 #include "pipeline/vtypes.hpp"
@@ -65,6 +66,7 @@ std::vector<std::string> split_list(const std::string& option, const std::string
 struct SnapVehicle {
   std::string id, key;  // key: library entry (FcdTypeModel::key)
   double x = 0, y = 0, z = 0, heading_deg = 0, speed_mps = 0;
+  double length_m = 0, width_m = 0, height_m = 0;  // FcdTypeModel's (the sweep's bounding sphere)
 };
 struct SnapshotPoses {
   double time_s = 0;
@@ -265,6 +267,7 @@ struct GridAxes {
   std::vector<int> rays, depths;
   std::vector<double> simplify;
   int ref_rays = 0, ref_depth = 0;
+  int coherence_window = 0;  // frames; 0: no coherence toggle
 };
 
 GridAxes parse_axes(const TradeoffArgs& args) {
@@ -278,6 +281,9 @@ GridAxes parse_axes(const TradeoffArgs& args) {
                                  : parse_int_list("--depths", args.depths, 0, tracer::kMaxDepth);
   a.simplify = args.simplify.empty() ? (args.quick ? std::vector<double>{2.0} : std::vector<double>{0.5, 2.0})
                                      : parse_number_list("--simplify", args.simplify, 0.0);
+  a.coherence_window = args.coherence_window >= 0 ? args.coherence_window : (args.quick ? 4 : 20);
+  if (a.coherence_window > 1000)
+    throw std::invalid_argument("--coherence-window: expected 0..1000, got " + std::to_string(args.coherence_window));
   const int max_rays = a.rays.back(), max_depth = a.depths.back();
   a.ref_rays = args.reference_rays > 0 ? args.reference_rays : 4 * max_rays;
   if (args.reference_rays < 0 || a.ref_rays > 4 * kMaxGridRays)
@@ -479,20 +485,25 @@ class TradeoffScenes {
 
   std::size_t triangles(double simplify_m) const { return scenes_.at(simplify_m).stats.triangles_after; }
 
+  // The scene model of library entry `key` at `lod` (registered on first use).
+  std::uint32_t model(SceneVariant& sv, int lod, const std::string& key) {
+    const int lib_lod = library_mode() ? lod : 0;
+    auto it = sv.models.find({lib_lod, key});
+    if (it == sv.models.end()) {
+      const auto& m = library(lib_lod).model(key);
+      it = sv.models.emplace(std::make_pair(lib_lod, key),
+                             sv.scene->add_vehicle_model(m.name, meshkit::to_scene(m), m.antenna))
+               .first;
+    }
+    return it->second;
+  }
+
   // The snapshot's vehicles (at `lod`) placed in `sv`; its antennas and the RSUs.
   std::vector<tracer::Node> place(SceneVariant& sv, int lod, const SnapshotPoses& snap, const std::vector<NodeRow>& rsus) {
     std::vector<tracer::VehiclePose> poses;
     for (const auto& v : snap.vehicles) {
-      const int lib_lod = library_mode() ? lod : 0;
-      auto it = sv.models.find({lib_lod, v.key});
-      if (it == sv.models.end()) {
-        const auto& m = library(lib_lod).model(v.key);
-        it = sv.models.emplace(std::make_pair(lib_lod, v.key),
-                               sv.scene->add_vehicle_model(m.name, meshkit::to_scene(m), m.antenna))
-                 .first;
-      }
       const double yaw = yaw_from_heading(v.heading_deg);
-      poses.push_back(tracer::VehiclePose{v.id, it->second, {v.x, v.y, v.z}, yaw,
+      poses.push_back(tracer::VehiclePose{v.id, model(sv, lod, v.key), {v.x, v.y, v.z}, yaw,
                                           {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0}});
     }
     sv.scene->set_vehicles(poses);
@@ -528,6 +539,19 @@ std::set<std::size_t> spread_choice(const std::vector<double>& eligible, int n) 
   return chosen;
 }
 
+SnapshotPoses snapshot_poses(const FcdFrame& frame, const std::vector<const FcdVehicle*>& selected,
+                             FcdTypeModels& type_models) {
+  SnapshotPoses s;
+  s.time_s = frame.time_s;
+  s.line = frame.line;
+  for (const FcdVehicle* v : selected) {
+    const FcdTypeModel* tm = type_models.resolve(*v);
+    s.vehicles.push_back(SnapVehicle{v->id, tm->key, v->x, v->y, v->has_z ? v->z : 0.0, v->angle_deg, v->speed_mps,
+                                     tm->length_m, tm->width_m, tm->height_m});
+  }
+  return s;
+}
+
 // Pass 1: the frames with at least two traced vehicles; pass 2 takes the
 // chosen ones (the selection depends on every earlier frame).
 std::vector<SnapshotPoses> choose_snapshots(const std::string& fcd, const SweepSettings& cfg,
@@ -555,15 +579,26 @@ std::vector<SnapshotPoses> choose_snapshots(const std::string& fcd, const SweepS
     const auto selected = selection.select(frame, traceable);
     if (selected.size() < 2) continue;
     if (!chosen.count(index++)) continue;
-    SnapshotPoses s;
-    s.time_s = frame.time_s;
-    s.line = frame.line;
-    for (const FcdVehicle* v : selected)
-      s.vehicles.push_back(SnapVehicle{v->id, type_models.resolve(*v)->key, v->x, v->y, v->has_z ? v->z : 0.0,
-                                       v->angle_deg, v->speed_mps});
-    snapshots.push_back(std::move(s));
+    snapshots.push_back(snapshot_poses(frame, selected, type_models));
   }
   return snapshots;
+}
+
+// `n` consecutive frames (every one the sweep would trace) from the first
+// with at least two traced vehicles: the coherence toggle's window.
+std::vector<SnapshotPoses> window_frames(const std::string& fcd, const SweepSettings& cfg,
+                                         const meshkit::Bounds& bounds, FcdTypeModels& type_models, int n) {
+  auto traceable = [&](const FcdVehicle& v) { return type_models.resolve(v) != nullptr; };
+  std::vector<SnapshotPoses> frames;
+  FcdReader reader(fcd, sweep_fcd_filter(cfg));
+  SweepSelection selection(cfg, bounds, fcd);
+  FcdFrame frame;
+  while (frames.size() < static_cast<std::size_t>(n) && reader.next(frame)) {
+    const auto selected = selection.select(frame, traceable);
+    if (frames.empty() && selected.size() < 2) continue;
+    frames.push_back(snapshot_poses(frame, selected, type_models));
+  }
+  return frames;
 }
 
 // The coarsest LOD every entry the snapshots use has (-1: none, or built-in models).
@@ -812,7 +847,8 @@ json tradeoff_provenance(const TradeoffArgs& args, const TradeoffInputs& in, con
                           {"base_depth", b.depth},
                           {"quick", args.quick},
                           {"repeats", std::max(1, args.repeats)},
-                          {"target_p95_db", args.target_p95_db}};
+                          {"target_p95_db", args.target_p95_db},
+                          {"coherence_window", axes.coherence_window}};
   json prov = provenance("tradeoff", inputs, cfg_json, recorded_command(argv));
   in.settings.record_sets(prov);
   prov["embree"] = tracer::embree_version();
@@ -863,7 +899,48 @@ struct TradeoffRun {
   std::vector<SnapshotPoses> snapshots;
   std::size_t rsus = 0;
   int suggested = -1;
+  std::optional<CoherenceWindowResult> coherence;  // the coherence toggle's window
+  double coherence_t0 = 0;
 };
+
+// The window's frames as the sweep steps them: nodes numbered RSUs first,
+// then vehicles in order of appearance.
+std::vector<CoherenceFrame> coherence_frames(const std::vector<SnapshotPoses>& window, std::size_t rsus, int lod,
+                                             TradeoffScenes& scenes) {
+  SceneVariant& sv = scenes.scene_for(0);
+  std::map<std::string, std::uint32_t> node_of;
+  std::vector<CoherenceFrame> frames;
+  for (const auto& snap : window) {
+    CoherenceFrame f;
+    f.time_s = snap.time_s;
+    for (const auto& v : snap.vehicles) {
+      generators::SweepVehicle sv_v;
+      sv_v.node = node_of.emplace(v.id, static_cast<std::uint32_t>(rsus + node_of.size())).first->second;
+      sv_v.model = scenes.model(sv, lod, v.key);
+      sv_v.position = {v.x, v.y, v.z};
+      sv_v.heading_deg = v.heading_deg;
+      const double yaw = yaw_from_heading(v.heading_deg);
+      sv_v.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
+      sv_v.length_m = v.length_m;
+      sv_v.width_m = v.width_m;
+      sv_v.height_m = v.height_m;
+      f.vehicles.push_back(sv_v);
+    }
+    frames.push_back(std::move(f));
+  }
+  return frames;
+}
+
+std::string coherence_text(const CoherenceWindowResult& c, double t0) {
+  return fmt::format(
+      "\ncoherence over {} frames from t = {:.1f} s ({} pair-frames; [sweep] coherence off = reference): tracing {:.2f} s "
+      "off, {:.2f} s on ({:.2f} x; {:.1f} % of the traced pair-frames searched); LoS {:.2f} %, Fresnel {:.2f} %; "
+      "gain difference p50 / p99 / max {:.2f} / {:.2f} / {:.2f} dB{}\n",
+      c.frames, t0, c.pair_frames, c.trace_off_s, c.trace_on_s, c.speedup(),
+      c.traced_on ? 100.0 * static_cast<double>(c.searched_on) / static_cast<double>(c.traced_on) : 0.0,
+      100 * c.los_agreement, 100 * c.fresnel_agreement, c.err_p50_db, c.err_p99_db, c.err_max_db,
+      c.same_links ? "" : " (the sweeps wrote different pairs)");
+}
 
 // tradeoff.csv, tradeoff.json and (args.chart) tradeoff.png under in.out;
 // the summary without its wall time.
@@ -880,6 +957,10 @@ json write_outputs(const TradeoffArgs& args, const TradeoffInputs& in, const Tra
               {"suggested", run.suggested >= 0 ? json(run.grid[run.suggested].label) : json(nullptr)},
               {"metrics", metrics_json()},
               {"provenance", prov}};
+  if (run.coherence) {
+    doc["coherence"] = coherence_json(*run.coherence);
+    doc["coherence"]["t0_s"] = run.coherence_t0;
+  }
 
   const fs::path dir(in.out);
   fs::create_directories(dir);
@@ -897,7 +978,8 @@ json write_outputs(const TradeoffArgs& args, const TradeoffInputs& in, const Tra
                   {"json", (dir / "tradeoff.json").string()},
                   {"settings", run.grid.size()},
                   {"snapshots", run.snapshots.size()},
-                  {"table", terminal_table(run.grid, run.results)},
+                  {"table", terminal_table(run.grid, run.results) +
+                                (run.coherence ? coherence_text(*run.coherence, run.coherence_t0) : std::string())},
                   {"suggested", doc["suggested"]},
                   {"target_p95_db", args.target_p95_db}};
   if (chart) summary["png"] = png.string();
@@ -944,6 +1026,16 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   const double rx_gain_db = settings.radio.sensitivity_dbm - settings.radio.tx_power_dbm;
   run.results = score(traces, run.snapshots.size(), rx_gain_db);
   run.suggested = suggest(run.grid, run.results, args.target_p95_db);
+  if (axes.coherence_window > 0) {
+    const auto window = window_frames(in.fcd, cfg, scenes.static_bounds(), type_models, axes.coherence_window);
+    std::vector<generators::SweepRsu> sweep_rsus;
+    for (std::size_t k = 0; k < rsus.size(); ++k)
+      sweep_rsus.push_back({static_cast<std::uint32_t>(k), {rsus[k].x, rsus[k].y, rsus[k].z}});
+    spdlog::info("tradeoff: coherence off and on over {} frames", window.size());
+    run.coherence = compare_coherence(*scenes.scene_for(0).scene, settings.tracer, settings.radio, cfg.options,
+                                      sweep_rsus, coherence_frames(window, rsus.size(), base.lod, scenes));
+    run.coherence_t0 = window.front().time_s;
+  }
 
   const json prov = tradeoff_provenance(args, in, settings, cfg, axes, base, argv);
   json summary = write_outputs(args, in, run, prov, base, scenes);

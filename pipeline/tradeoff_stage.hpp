@@ -8,7 +8,9 @@
 // path-gain error (median and 95th percentile, dB), the LoS-class agreement
 // and the fraction of the reference power found. Writes tradeoff.csv,
 // tradeoff.json (with provenance) and tradeoff.png (time against error, the
-// Pareto front marked; python/tradeoff_chart.py).
+// Pareto front marked; python/tradeoff_chart.py). The coherence toggle: a
+// short window of consecutive frames swept with [sweep] coherence off and on
+// (tradeoff_coherence.hpp), in tradeoff.json's "coherence".
 #pragma once
 
 #include <array>
@@ -38,6 +40,9 @@ struct TradeoffArgs {
   bool quick = false;                  // a tiny grid (tests)
   int repeats = 1;                     // rounds over all snapshots and settings; a snapshot's time is its fastest
   double target_p95_db = 3;            // the suggestion: cheapest setting within this p95 error
+  // The coherence toggle: this many consecutive frames swept with [sweep]
+  // coherence off and on (tradeoff_coherence.hpp); 0: none; < 0: 20 (--quick 4).
+  int coherence_window = -1;
   bool chart = true;
 };
 

@@ -255,6 +255,21 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
   }
   for (const char* role : {"scene", "fcd", "config", "vehicle_manifest"}) EXPECT_TRUE(roles.count(role)) << role;
   EXPECT_EQ(prov["config"]["tradeoff"]["reference_rays"], 4096);
+  EXPECT_EQ(prov["config"]["tradeoff"]["coherence_window"], 4);  // --quick
+  // The coherence toggle: 4 frames swept with coherence off and on.
+  const json& coh = doc["coherence"];
+  EXPECT_EQ(coh["frames"], 4);
+  EXPECT_GT(coh["pair_frames"].get<int>(), 0);
+  EXPECT_TRUE(coh["same_links"].get<bool>());
+  EXPECT_GT(coh["trace_s_off"].get<double>(), 0);
+  EXPECT_GT(coh["speedup"].get<double>(), 0);
+  for (const char* k : {"los_agreement", "fresnel_agreement"}) {
+    EXPECT_GE(coh[k].get<double>(), 0) << k;
+    EXPECT_LE(coh[k].get<double>(), 1) << k;
+  }
+  EXPECT_LE(coh["gain_diff_p99_db"].get<double>(), coh["gain_diff_max_db"].get<double>());
+  EXPECT_LE(coh["searched_pair_frames_on"].get<int>(), coh["traced_pair_frames_on"].get<int>());
+  EXPECT_NE(r.output.find("coherence over 4 frames"), std::string::npos) << r.output;
   EXPECT_EQ(prov["config"]["tracer"]["rays_per_source"], 1024);
   // Nothing left over from the atomic writes.
   for (const auto& e : fs::directory_iterator(out))
@@ -268,7 +283,8 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   // Built-in models (no library): no LOD variant; one snapshot; custom lists.
   auto r = run_raysweep("tradeoff --scene " + in.scene.string() + " --fcd " + in.fcd.string() + " --config " +
                         in.config.string() + " --rays 512 --depths 0,1 --simplify 0.1,1 --snapshots 1 "
-                        "--reference-rays 2048 --reference-depth 2 --no-chart --out " + out.string());
+                        "--reference-rays 2048 --reference-depth 2 --no-chart --out " + out.string() +
+                        " --coherence-window 3 --set sweep.coherence_frames=1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
@@ -284,6 +300,15 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   EXPECT_FALSE(fs::exists(out / "tradeoff.png"));
   const json doc = json::parse(read_text(out / "tradeoff.json"));
   EXPECT_EQ(doc["snapshots"].size(), 1u);
+  // coherence_frames = 1: the coherent sweep searches every pair it traces
+  // in every frame, so it must equal the reference to the bit.
+  const json& coh = doc["coherence"];
+  EXPECT_EQ(coh["frames"], 3);
+  EXPECT_GT(coh["pair_frames"].get<int>(), 0);
+  EXPECT_EQ(coh["searched_pair_frames_on"], coh["traced_pair_frames_on"]);
+  EXPECT_EQ(coh["gain_diff_max_db"].get<double>(), 0.0);
+  EXPECT_EQ(coh["los_agreement"].get<double>(), 1.0);
+  EXPECT_EQ(coh["fresnel_agreement"].get<double>(), 1.0);
 }
 
 TEST(CliTradeoff, BadInputExitsTwoAndWritesNothing) {
