@@ -10,6 +10,9 @@
 //            pruned by side tests and the beam each first face reflects.
 //   order 2: every ground face (large horizontal static faces) with every
 //            vehicle face, in both orders (a car body's ground bounce).
+//   order 3, two static faces and the ground (ground_order3): once per
+//            ground plane (ImageFaces::ground_planes), each face of it
+//            tested at the one reflection point.
 // Vehicle faces are found through their normals: a vehicle reflects from
 // `a` to `b` only on faces whose normal lies within the angle its bounding
 // sphere subtends from both ends of the bisector of the two directions.
