@@ -125,6 +125,21 @@ std::vector<const FcdVehicle*> SweepSelection::select(const FcdFrame& frame,
   return out;
 }
 
+generators::SweepVehicle sweep_vehicle(const FcdVehicle& v, const FcdTypeModel& tm, std::uint32_t node,
+                                       std::uint32_t model) {
+  generators::SweepVehicle sv;
+  sv.node = node;
+  sv.model = model;
+  sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
+  sv.heading_deg = v.angle_deg;
+  const double yaw = yaw_from_heading(v.angle_deg);
+  sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
+  sv.length_m = tm.length_m;
+  sv.width_m = tm.width_m;
+  sv.height_m = tm.height_m;
+  return sv;
+}
+
 namespace {
 
 // The recorded settings and inputs of a sweep, and its run key: a resumed run
@@ -299,21 +314,6 @@ class BlockStore {
   // (the sweep's step less its tracing), and reducing and serialising them.
   double record_seconds_ = 0, block_seconds_ = 0;
 };
-
-generators::SweepVehicle sweep_vehicle(const FcdVehicle& v, const FcdTypeModel& tm, std::uint32_t node,
-                                       std::uint32_t model) {
-  generators::SweepVehicle sv;
-  sv.node = node;
-  sv.model = model;
-  sv.position = {v.x, v.y, v.has_z ? v.z : 0.0};  // finite: FcdReader rejects NaN/Inf
-  sv.heading_deg = v.angle_deg;
-  const double yaw = yaw_from_heading(v.angle_deg);
-  sv.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
-  sv.length_m = tm.length_m;
-  sv.width_m = tm.width_m;
-  sv.height_m = tm.height_m;
-  return sv;
-}
 
 // How far the frame loop got.
 struct SweepProgress {

@@ -78,6 +78,11 @@ class FcdTypeModels {
   std::map<std::string, std::optional<FcdTypeModel>> cache_;
 };
 
+// An FCD vehicle as the sweep steps it: dataset node `node`, scene model
+// `model`, the type's dimensions for its bounding sphere.
+generators::SweepVehicle sweep_vehicle(const FcdVehicle& v, const FcdTypeModel& tm, std::uint32_t node,
+                                       std::uint32_t model);
+
 // Which vehicles of each frame a sweep traces: [sweep] max_vehicles (the
 // first N to appear, refilled as they leave) and outside (a vehicle outside
 // the scene's x/y bounds is an InputError naming the FCD line, or dropped and

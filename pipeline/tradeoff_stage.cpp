@@ -66,7 +66,6 @@ std::vector<std::string> split_list(const std::string& option, const std::string
 struct SnapVehicle {
   std::string id, key;  // key: library entry (FcdTypeModel::key)
   double x = 0, y = 0, z = 0, heading_deg = 0, speed_mps = 0;
-  double length_m = 0, width_m = 0, height_m = 0;  // FcdTypeModel's (the sweep's bounding sphere)
 };
 struct SnapshotPoses {
   double time_s = 0;
@@ -545,9 +544,8 @@ SnapshotPoses snapshot_poses(const FcdFrame& frame, const std::vector<const FcdV
   s.time_s = frame.time_s;
   s.line = frame.line;
   for (const FcdVehicle* v : selected) {
-    const FcdTypeModel* tm = type_models.resolve(*v);
-    s.vehicles.push_back(SnapVehicle{v->id, tm->key, v->x, v->y, v->has_z ? v->z : 0.0, v->angle_deg, v->speed_mps,
-                                     tm->length_m, tm->width_m, tm->height_m});
+    s.vehicles.push_back(SnapVehicle{v->id, type_models.resolve(*v)->key, v->x, v->y, v->has_z ? v->z : 0.0,
+                                     v->angle_deg, v->speed_mps});
   }
   return s;
 }
@@ -585,18 +583,27 @@ std::vector<SnapshotPoses> choose_snapshots(const std::string& fcd, const SweepS
 }
 
 // `n` consecutive frames (every one the sweep would trace) from the first
-// with at least two traced vehicles: the coherence toggle's window.
-std::vector<SnapshotPoses> window_frames(const std::string& fcd, const SweepSettings& cfg,
-                                         const meshkit::Bounds& bounds, FcdTypeModels& type_models, int n) {
+// with at least two traced vehicles, as the sweep steps them (nodes
+// numbered RSUs first, then vehicles in order of appearance; models at `lod`
+// in the scene as built): the coherence toggle's window.
+std::vector<CoherenceFrame> window_frames(const std::string& fcd, const SweepSettings& cfg, TradeoffScenes& scenes,
+                                          FcdTypeModels& type_models, int n, std::size_t rsus, int lod) {
   auto traceable = [&](const FcdVehicle& v) { return type_models.resolve(v) != nullptr; };
-  std::vector<SnapshotPoses> frames;
+  SceneVariant& sv = scenes.scene_for(0);
+  std::map<std::string, std::uint32_t> node_of;
+  std::vector<CoherenceFrame> frames;
   FcdReader reader(fcd, sweep_fcd_filter(cfg));
-  SweepSelection selection(cfg, bounds, fcd);
-  FcdFrame frame;
-  while (frames.size() < static_cast<std::size_t>(n) && reader.next(frame)) {
+  SweepSelection selection(cfg, scenes.static_bounds(), fcd);
+  for (FcdFrame frame; frames.size() < static_cast<std::size_t>(n) && reader.next(frame);) {
     const auto selected = selection.select(frame, traceable);
     if (frames.empty() && selected.size() < 2) continue;
-    frames.push_back(snapshot_poses(frame, selected, type_models));
+    CoherenceFrame f{frame.time_s, {}};
+    for (const FcdVehicle* v : selected) {
+      const FcdTypeModel* tm = type_models.resolve(*v);
+      const auto node = node_of.emplace(v->id, static_cast<std::uint32_t>(rsus + node_of.size())).first->second;
+      f.vehicles.push_back(sweep_vehicle(*v, *tm, node, scenes.model(sv, lod, tm->key)));
+    }
+    frames.push_back(std::move(f));
   }
   return frames;
 }
@@ -903,34 +910,6 @@ struct TradeoffRun {
   double coherence_t0 = 0;
 };
 
-// The window's frames as the sweep steps them: nodes numbered RSUs first,
-// then vehicles in order of appearance.
-std::vector<CoherenceFrame> coherence_frames(const std::vector<SnapshotPoses>& window, std::size_t rsus, int lod,
-                                             TradeoffScenes& scenes) {
-  SceneVariant& sv = scenes.scene_for(0);
-  std::map<std::string, std::uint32_t> node_of;
-  std::vector<CoherenceFrame> frames;
-  for (const auto& snap : window) {
-    CoherenceFrame f;
-    f.time_s = snap.time_s;
-    for (const auto& v : snap.vehicles) {
-      generators::SweepVehicle sv_v;
-      sv_v.node = node_of.emplace(v.id, static_cast<std::uint32_t>(rsus + node_of.size())).first->second;
-      sv_v.model = scenes.model(sv, lod, v.key);
-      sv_v.position = {v.x, v.y, v.z};
-      sv_v.heading_deg = v.heading_deg;
-      const double yaw = yaw_from_heading(v.heading_deg);
-      sv_v.velocity = {v.speed_mps * std::cos(yaw), v.speed_mps * std::sin(yaw), 0};
-      sv_v.length_m = v.length_m;
-      sv_v.width_m = v.width_m;
-      sv_v.height_m = v.height_m;
-      f.vehicles.push_back(sv_v);
-    }
-    frames.push_back(std::move(f));
-  }
-  return frames;
-}
-
 std::string coherence_text(const CoherenceWindowResult& c, double t0) {
   return fmt::format(
       "\ncoherence over {} frames from t = {:.1f} s ({} pair-frames; [sweep] coherence off = reference): tracing {:.2f} s "
@@ -1027,13 +1006,13 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   run.results = score(traces, run.snapshots.size(), rx_gain_db);
   run.suggested = suggest(run.grid, run.results, args.target_p95_db);
   if (axes.coherence_window > 0) {
-    const auto window = window_frames(in.fcd, cfg, scenes.static_bounds(), type_models, axes.coherence_window);
+    const auto window = window_frames(in.fcd, cfg, scenes, type_models, axes.coherence_window, rsus.size(), base.lod);
     std::vector<generators::SweepRsu> sweep_rsus;
     for (std::size_t k = 0; k < rsus.size(); ++k)
       sweep_rsus.push_back({static_cast<std::uint32_t>(k), {rsus[k].x, rsus[k].y, rsus[k].z}});
     spdlog::info("tradeoff: coherence off and on over {} frames", window.size());
     run.coherence = compare_coherence(*scenes.scene_for(0).scene, settings.tracer, settings.radio, cfg.options,
-                                      sweep_rsus, coherence_frames(window, rsus.size(), base.lod, scenes));
+                                      sweep_rsus, window);
     run.coherence_t0 = window.front().time_s;
   }
 

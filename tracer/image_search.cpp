@@ -740,7 +740,9 @@ class ImageSearch : public SourceSearch {
     outline_pyramid(faces, f1, i1, pyramid);
     const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds)};
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
-    walk_beam(b1, beam, p1, ds, f1, [&](std::uint32_t f2) { second_face(b1, f2); });
+    walk_beam(
+        b1, beam, p1, ds, [&](std::uint32_t f2) { return scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2); },
+        [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
     for (const auto& gp : *grounds) ground_between(b1, beam, gp);
   }
@@ -769,9 +771,9 @@ class ImageSearch : public SourceSearch {
   // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
   // it on) or outside the beam skipped whole (their faces would each fail
   // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
-  // the rest.
-  template <class Leaf>
-  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, std::uint32_t from_face,
+  // the rest that `reaches` (f2 reaches the side the beam leaves on).
+  template <class Reaches, class Leaf>
+  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, Reaches&& reaches,
                  Leaf&& leaf) {
     walk_static_tree(
         faces, tree_stack,
@@ -781,9 +783,7 @@ class ImageSearch : public SourceSearch {
           return outside_beam(b1, b, sp, tol, sp.radius);
         },
         [&](std::uint32_t f2) {
-          // f2 must reach the side the beam leaves from_face on.
-          if (!scene.static_face_reaches(from_face, side > 0 ? 1 : -1, f2)) return;
-          if (outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0)) return;
+          if (!reaches(f2) || outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0)) return;
           leaf(f2);
         });
   }
@@ -886,24 +886,18 @@ class ImageSearch : public SourceSearch {
     Beam bg{i1g, beam.cone, beam.narrow, &pyramid_g};
     bg.cone.axis = mirror(beam.cone.axis);
     // After the ground the path runs on I1's side of it (q2 with I1): f2
-    // must reach that side of each face g (its own orientation).
-    walk_static_tree(
-        faces, tree_stack,
-        [&](const TraceScene::Sphere& sp, double tol) {
-          const double h = dot(pg.normal, sp.centre) - pg.offset;
-          if ((dg > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
-          return outside_beam(b1, bg, sp, tol, sp.radius);
-        },
-        [&](std::uint32_t f2) {
-          ground_sub.clear();
-          for (const std::uint32_t j : ground_set) {
-            const std::uint32_t g = gp.faces[j];
-            if (f2 != g && scene.static_face_reaches(g, (dg > 0) != (gp.flipped[j] != 0) ? 1 : -1, f2))
-              ground_sub.push_back(g);
-          }
-          if (ground_sub.empty() || outside_beam(b1, bg, faces.spheres[f2], faces.tol[f2], 0)) return;
-          after_ground(b1, pg, dg, i1g, f2);
-        });
+    // must reach that side of some face g (its own orientation), and is
+    // tried with those.
+    auto reaches = [&](std::uint32_t f2) {
+      ground_sub.clear();
+      for (const std::uint32_t j : ground_set) {
+        const std::uint32_t g = gp.faces[j];
+        if (f2 != g && scene.static_face_reaches(g, (dg > 0) != (gp.flipped[j] != 0) ? 1 : -1, f2))
+          ground_sub.push_back(g);
+      }
+      return !ground_sub.empty();
+    };
+    walk_beam(b1, bg, pg, dg, reaches, [&](std::uint32_t f2) { after_ground(b1, pg, dg, i1g, f2); });
   }
 
   // Order 3 (f1, g, f2) through second face f2 of the mirrored beam (apex
