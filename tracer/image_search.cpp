@@ -6,6 +6,8 @@
 #include <cstdint>
 #include <limits>
 
+#include <tbb/parallel_for.h>
+
 namespace raysweep::tracer {
 
 namespace {
@@ -488,15 +490,17 @@ class SourceSearch {
 class ImageSearch : public SourceSearch {
  public:
   ImageSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
-              const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+              const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, const SlabBounds* slabs)
       : SourceSearch(scene, faces, nodes, src, receivers, out),
         src(src),
+        slabs(slabs),
         higher_from(
             static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin())) {}
 
   // Order 1, static faces (towards higher receivers).
   void static_order1() {
-    for (std::size_t f = 0; f < faces.static_count; ++f) {
+    for (std::uint32_t f = 0; f < faces.static_count; ++f) {
+      if (over_cap(f)) continue;
       const Plane& pl = faces.planes[f];
       const double off = pl.offset - dot(pl.normal, xs);  // plane offset relative to the source
       const double ds = -off;                              // the source's signed distance
@@ -508,7 +512,7 @@ class ImageSearch : public SourceSearch {
                           faces.tol[f], scratch))
         continue;
       for (std::size_t r = higher_from; r < rx.size(); ++r) {
-        if (!scratch.hit[r]) continue;
+        if (!scratch.hit[r] || over_cap(f, r, f)) continue;
         const Vec3 xr = receiver(r);
         const double d = dot(pl.normal, xr) - pl.offset;
         if (on_face(f, crossing(xs - (2 * ds) * pl.normal, -ds, xr, d)))
@@ -592,7 +596,15 @@ class ImageSearch : public SourceSearch {
 
  private:
   const std::uint32_t src;
+  const SlabBounds* slabs;        // null: no slab bounds
   const std::size_t higher_from;  // the first receiver above the source
+
+  // Whether a first leg from the source to static face f1 (and a last leg
+  // from static face fl to receiver r) cross more slabs than the cap.
+  bool over_cap(std::uint32_t f1) const { return slabs && slabs->at(src, f1) > slabs->cap; }
+  bool over_cap(std::uint32_t f1, std::size_t r, std::uint32_t fl) const {
+    return slabs && slabs->at(src, f1) + slabs->at(receivers[r], fl) > slabs->cap;
+  }
   // static_pairs' state: the ground planes for order 3 (none without it),
   // every receiver's image in each of them (relative to the source), the
   // beams' pyramids and the tree walk's stack.
@@ -726,6 +738,7 @@ class ImageSearch : public SourceSearch {
   };
 
   void from_first_face(std::uint32_t f1) {
+    if (over_cap(f1)) return;
     const Plane& p1 = faces.planes[f1];
     const double ds = dot(p1.normal, xs) - p1.offset;
     if (ds == 0) return;
@@ -826,7 +839,7 @@ class ImageSearch : public SourceSearch {
     if (mark_crossings(rx, higher_from, p2, off2, di, i2 - xs, s2, s2.centre - xs, faces.tol[f2], scratch))
       for (std::size_t r = higher_from; r < rx.size(); ++r) {
         Vec3 q2;
-        if (scratch.hit[r] && back_to_f1(b1, b2, receiver(r), q2))
+        if (scratch.hit[r] && !over_cap(f1, r, f2) && back_to_f1(b1, b2, receiver(r), q2))
           out.push_back({receivers[r], {faces.refs[f1], faces.refs[f2]}});
       }
     if (mirrored.size() == 0) return;
@@ -916,7 +929,7 @@ class ImageSearch : public SourceSearch {
                         faces.tol[f2], scratch))
       return;
     for (std::size_t r = higher_from; r < rx.size(); ++r) {
-      if (!scratch.hit[r]) continue;
+      if (!scratch.hit[r] || over_cap(f1, r, f2)) continue;
       const Vec3 xr = receiver(r);
       const double d = dot(p2.normal, xr) - p2.offset;
       const Vec3 q2 = crossing(i2, -di, xr, d);
@@ -942,9 +955,9 @@ class ImageSearch : public SourceSearch {
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats, bool multi_bounce,
-                      bool ground_order3, bool static_pairs) {
+                      bool ground_order3, bool static_pairs, const SlabBounds* slabs) {
   if (max_order < 1 || receivers.empty()) return;
-  ImageSearch search(scene, faces, nodes, src, receivers, out);
+  ImageSearch search(scene, faces, nodes, src, receivers, out, slabs);
   search.static_order1();
   search.vehicle_order1();
   if (max_order >= 2) search.ground_then_vehicle();
@@ -1503,21 +1516,87 @@ void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, cons
 
 namespace raysweep::tracer {
 
+namespace {
+
+// p inside static face g's convex outline by at least `margin` (the
+// outline runs counter-clockwise about the normal: inside is to the left).
+bool deep_inside(const ImageFaces& faces, std::uint32_t g, const Vec3& p, double margin) {
+  const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
+  const Vec3& n = faces.planes[g].normal;
+  for (std::uint32_t k = o0; k < o1; ++k) {
+    const Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
+    if (dot(cross(b - a, p - a), n) < margin * norm(b - a)) return false;
+  }
+  return true;
+}
+
+// Whether the segment from src to p crosses static face g (hit at distance
+// t along unit dir) as hidden_by_convex_face needs it: g convex, src and p
+// on opposite sides of its plane and both at least `margin` from it, the
+// crossing at least `margin` inside its outline.
+bool crosses_deep(const ImageFaces& faces, std::uint32_t g, const Vec3& src, const Vec3& p, const Vec3& dir,
+                  double t, double margin) {
+  if (!faces.convex[g]) return false;
+  const Plane& pb = faces.planes[g];
+  const double h_src = dot(pb.normal, src) - pb.offset, h_p = dot(pb.normal, p) - pb.offset;
+  return h_src * h_p < 0 && std::fabs(h_src) >= margin && std::fabs(h_p) >= margin &&
+         deep_inside(faces, g, src + t * dir, margin);
+}
+
+// SlabBounds::at(node at src, f): the faces every ray from src to f's
+// outline vertices crosses deep (ascending, intersected ray by ray).
+int slabs_to_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, std::uint32_t f, int limit,
+                  std::vector<Hit>& hits, std::vector<std::uint32_t>& common, std::vector<std::uint32_t>& next) {
+  const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
+  if (o1 - o0 < 3) return 0;
+  const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * faces.tol[f];
+  const FaceRef self{0, f};
+  for (std::uint32_t k = o0; k < o1; ++k) {
+    const Vec3 w = faces.outline[k] - src;
+    const double len = norm(w);
+    if (!(len > 2 * margin)) return 0;
+    const Vec3 dir = (1.0 / len) * w;
+    scene.all_hits(src, dir, 0, len, hits, 16, &self);  // the first 16 (a lower bound either way)
+    next.clear();
+    for (const Hit& h : hits)
+      if (h.face.instance == 0 && crosses_deep(faces, h.face.face, src, faces.outline[k], dir, h.t, margin))
+        next.push_back(h.face.face);
+    std::sort(next.begin(), next.end());
+    next.erase(std::unique(next.begin(), next.end()), next.end());
+    if (k == o0) {
+      common.swap(next);
+    } else {
+      const auto end = std::set_intersection(common.begin(), common.end(), next.begin(), next.end(), common.begin());
+      common.erase(end, common.end());
+    }
+    if (common.empty()) return 0;
+  }
+  return std::min(static_cast<int>(common.size()), limit);
+}
+
+}  // namespace
+
+SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                       const std::vector<char>& wanted, int cap) {
+  SlabBounds b;
+  b.cap = cap;
+  b.static_count = faces.static_count;
+  b.lb.assign(nodes.size() * faces.static_count, 0);
+  tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t n) {
+    if (!wanted[n]) return;
+    std::vector<Hit> hits;
+    std::vector<std::uint32_t> common, next;
+    for (std::uint32_t f = 0; f < faces.static_count; ++f)
+      b.lb[n * faces.static_count + f] =
+          static_cast<std::uint8_t>(slabs_to_face(scene, faces, nodes[n].position, f, cap + 1, hits, common, next));
+  });
+  return b;
+}
+
 bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
                            std::size_t count, const FaceRef* skip, double tol) {
   if (count < 2) return false;
   const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * tol;
-  // p inside static face g's convex outline by at least `margin` (the
-  // outline runs counter-clockwise about the normal: inside is to the left).
-  auto deep_inside = [&](std::uint32_t g, const Vec3& p) {
-    const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
-    const Vec3& n = faces.planes[g].normal;
-    for (std::uint32_t k = o0; k < o1; ++k) {
-      const Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
-      if (dot(cross(b - a, p - a), n) < margin * norm(b - a)) return false;
-    }
-    return true;
-  };
   std::uint32_t blocker = ~0u;
   for (std::size_t k = 0; k < count; ++k) {
     const Vec3 w = points[k] - src;
@@ -1529,11 +1608,7 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
     if (hit.face.instance != 0 || !faces.convex[hit.face.face]) return false;
     if (blocker != ~0u && hit.face.face != blocker) return false;
     blocker = hit.face.face;
-    const Plane& pb = faces.planes[blocker];
-    const double h_src = dot(pb.normal, src) - pb.offset, h_p = dot(pb.normal, points[k]) - pb.offset;
-    if (!(h_src * h_p < 0) || std::fabs(h_src) < margin || std::fabs(h_p) < margin ||
-        !deep_inside(blocker, src + hit.t * dir))
-      return false;
+    if (!crosses_deep(faces, blocker, src, points[k], dir, hit.t, margin)) return false;
   }
   return true;
 }

@@ -127,10 +127,31 @@ ImageFaces image_faces(const TraceScene& scene);
 // ground-static-static. Deterministic: the output depends only on the scene
 // and the nodes. Without `static_pairs`, no sequence of two or more static
 // faces (the vehicles' own: tracer/coherence.hpp's per-frame pass).
+// Lower bounds on the slabs a leg between a node and a static face crosses:
+// at(n, f) distinct convex static faces that every segment from node n to a
+// point of f's convex outline crosses well inside them (the argument of
+// hidden_by_convex_face below, for each face every ray to the outline's
+// vertices crosses), counted up to cap + 1. exact_path counts every static
+// face a leg crosses as a slab (or stops at an opaque one), so a sequence
+// whose first leg from the source and last leg to the receiver together
+// cross more than `cap` (TracerConfig::max_transmissions, 0 without
+// refraction) is never a path: the static searches skip it. In an old town
+// most faces lie behind buildings (Bad Hersfeld: 97 % of the candidates
+// died at the two-slab cap).
+struct SlabBounds {
+  int cap = 0;
+  std::uint32_t static_count = 0;
+  std::vector<std::uint8_t> lb;  // node-major; nodes not asked for: 0
+  int at(std::uint32_t node, std::uint32_t f) const { return lb[std::size_t{node} * static_count + f]; }
+};
+// For the nodes with `wanted` set.
+SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                       const std::vector<char>& wanted, int cap);
+
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true,
-                      bool ground_order3 = true, bool static_pairs = true);
+                      bool ground_order3 = true, bool static_pairs = true, const SlabBounds* slabs = nullptr);
 
 // A static face and a vehicle the shoot-and-bounce rays of one source reach
 // in that order (a ray reflected by the face passes within the vehicle's
