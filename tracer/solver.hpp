@@ -58,7 +58,9 @@ struct PairResult {
   std::vector<std::vector<FaceRef>> near_misses;
   PathStats stats;
   std::uint32_t candidates = 0;         // face sequences refined
-  std::uint32_t dropped_transmission_cap = 0;  // valid paths dropped for crossing > max_transmissions slabs
+  // Candidates dropped for crossing > max_transmissions slabs (the image
+  // search's slab bounds skip most such sequences before proposing them).
+  std::uint32_t dropped_transmission_cap = 0;
   std::uint32_t dropped_threshold = 0;  // paths dropped for being path_threshold_db below the strongest
   bool out_of_range = false;  // beyond max_range_m: not traced, no paths (LoS class still classified)
 };
