@@ -1013,7 +1013,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
     spdlog::info("tradeoff: coherence off and on over {} frames", window.size());
     run.coherence = compare_coherence(*scenes.scene_for(0).scene, settings.tracer, settings.radio, cfg.options,
                                       sweep_rsus, window);
-    run.coherence_t0 = window.front().time_s;
+    run.coherence_t0 = window.empty() ? 0.0 : window.front().time_s;
   }
 
   const json prov = tradeoff_provenance(args, in, settings, cfg, axes, base, argv);

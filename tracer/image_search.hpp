@@ -117,16 +117,6 @@ bool image_complete(const TraceScene& scene, const ImageFaces& faces, const std:
                     bool ground_order3 = false);
 ImageFaces image_faces(const TraceScene& scene);
 
-// Face sequences of order 1..max_order (at most 3: on one vehicle, or
-// static faces with one on the ground) from node `src` to each node in
-// `receivers` (sorted; lower and higher indices) whose reflection points lie
-// on their faces. Sequences that are their own reverse's counterpart (order
-// 1, static-static, static-ground-static) are searched towards higher
-// receivers only; ground-vehicle and static-static-ground sequences towards
-// all, so that the other end's search yields vehicle-ground and
-// ground-static-static. Deterministic: the output depends only on the scene
-// and the nodes. Without `static_pairs`, no sequence of two or more static
-// faces (the vehicles' own: tracer/coherence.hpp's per-frame pass).
 // Lower bounds on the slabs a leg between a node and a static face crosses:
 // at(n, f) distinct convex static faces that every segment from node n to a
 // point of f's convex outline crosses well inside them (the argument of
@@ -148,6 +138,17 @@ struct SlabBounds {
 SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                        const std::vector<char>& wanted, int cap);
 
+// Face sequences of order 1..max_order (at most 3: on one vehicle, or
+// static faces with one on the ground) from node `src` to each node in
+// `receivers` (sorted; lower and higher indices) whose reflection points lie
+// on their faces. Sequences that are their own reverse's counterpart (order
+// 1, static-static, static-ground-static) are searched towards higher
+// receivers only; ground-vehicle and static-static-ground sequences towards
+// all, so that the other end's search yields vehicle-ground and
+// ground-static-static. Deterministic: the output depends only on the scene
+// and the nodes. Without `static_pairs`, no sequence of two or more static
+// faces (the vehicles' own: tracer/coherence.hpp's per-frame pass). With
+// `slabs`, no static sequence whose legs it puts over its cap.
 void image_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                       std::uint32_t src, const std::vector<std::uint32_t>& receivers, int max_order,
                       std::vector<ImageCandidate>& out, ImageSearchStats* stats = nullptr, bool multi_bounce = true,
