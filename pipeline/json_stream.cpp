@@ -13,14 +13,42 @@ JsonStream::~JsonStream() {
   }
 }
 
+JsonStream::JsonStream(Fragment at, int indent) : indent_(indent), base_(at.depth) {
+  if (at.depth == 0) throw std::logic_error("JsonStream: a fragment inside no array");
+  levels_.resize(at.depth);
+  levels_.back().spliced = true;
+  wrote_root_ = true;
+}
+
 void JsonStream::flush() {
-  out_.write(buf_.data(), static_cast<std::streamsize>(buf_.size()));
+  if (!out_) return;  // a fragment keeps its text for take()
+  out_->write(buf_.data(), static_cast<std::streamsize>(buf_.size()));
   buf_.clear();
+}
+
+std::string JsonStream::take() {
+  if (out_ || !complete()) throw std::logic_error("JsonStream: take() of an unfinished fragment");
+  return std::move(buf_);
+}
+
+// A fragment's text begins with its first element's newline and holds the
+// commas between its elements; the bracket or comma before it is this array's.
+JsonStream& JsonStream::splice(std::string_view fragment) {
+  if (levels_.empty() || levels_.back().object) throw std::logic_error("JsonStream: splice outside an array");
+  if (fragment.empty()) return *this;
+  Level& l = levels_.back();
+  buf_ += l.empty ? '[' : ',';
+  l.empty = false;
+  put(fragment);
+  return *this;
 }
 
 void JsonStream::newline(std::size_t depth) {
   const std::size_t n = depth * static_cast<std::size_t>(indent_) + 1;
-  if (pad_.size() < n) pad_ = "\n" + std::string(2 * n, ' ');
+  if (pad_.size() < n) {
+    pad_.assign(2 * n + 1, ' ');
+    pad_[0] = '\n';
+  }
   put(std::string_view(pad_.data(), n));
 }
 
@@ -55,7 +83,8 @@ void JsonStream::before_value() {
     l.have_key = false;
     return;
   }
-  buf_ += l.empty ? '[' : ',';
+  if (!l.empty) buf_ += ',';
+  else if (!l.spliced) buf_ += '[';
   l.empty = false;
   newline(levels_.size());
 }
@@ -79,18 +108,18 @@ JsonStream& JsonStream::key(std::string_view k) {
 // The opening bracket waits for the first element: an empty container is "{}" or "[]".
 JsonStream& JsonStream::begin_object() {
   before_value();
-  levels_.push_back({true, true, false, {}});
+  levels_.push_back({true, true, false, false, {}});
   return *this;
 }
 
 JsonStream& JsonStream::begin_array() {
   before_value();
-  levels_.push_back({false, true, false, {}});
+  levels_.push_back({false, true, false, false, {}});
   return *this;
 }
 
 JsonStream& JsonStream::close(bool object, char bracket) {
-  if (levels_.empty() || levels_.back().object != object || levels_.back().have_key)
+  if (levels_.size() <= base_ || levels_.back().object != object || levels_.back().have_key)
     throw std::logic_error("JsonStream: unbalanced close");
   const bool empty = levels_.back().empty;
   levels_.pop_back();

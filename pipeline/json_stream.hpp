@@ -19,7 +19,15 @@ namespace raysweep::pipeline {
 
 class JsonStream {
  public:
-  explicit JsonStream(std::ostream& out, int indent = 1) : out_(out), indent_(indent) { buf_.reserve(kFlushBytes); }
+  explicit JsonStream(std::ostream& out, int indent = 1) : out_(&out), indent_(indent) { buf_.reserve(kFlushBytes); }
+  // Elements of an array that another stream has open at `depth` (its
+  // number of open objects and arrays), formatted apart, on another thread,
+  // into text that the other stream's splice() takes: the bytes are those of
+  // writing the elements there.
+  struct Fragment {
+    std::size_t depth;
+  };
+  explicit JsonStream(Fragment at, int indent = 1);
   ~JsonStream();  // writes what is buffered (flush() reports failures; this cannot)
   JsonStream(const JsonStream&) = delete;
   JsonStream& operator=(const JsonStream&) = delete;
@@ -63,20 +71,28 @@ class JsonStream {
     return end_array();
   }
   // True when every opened object and array is closed.
-  bool complete() const { return levels_.empty() && wrote_root_; }
+  bool complete() const { return levels_.size() == base_ && wrote_root_; }
+  // Objects and arrays open now (a Fragment's depth for elements of this array).
+  std::size_t depth() const { return levels_.size(); }
+  // A fragment's text, once complete() (std::logic_error otherwise).
+  std::string take();
+  // Appends a fragment's text to the open array, as its next elements.
+  JsonStream& splice(std::string_view fragment);
 
  private:
   struct Level {
     bool object = false;
     bool empty = true;
     bool have_key = false;  // objects: a key waits for its value
+    bool spliced = false;   // a fragment's array: its bracket is in the other stream
     std::string last_key;
   };
   static constexpr std::size_t kFlushBytes = 1 << 20;
-  std::ostream& out_;
+  std::ostream* out_ = nullptr;  // none for a fragment
   std::string buf_;  // text not yet handed to out_ (one write per MiB, not one per token)
   int indent_;
   std::vector<Level> levels_;
+  std::size_t base_ = 0;  // levels a fragment starts inside (and cannot close)
   bool wrote_root_ = false;
   std::string pad_;  // a newline and spaces enough for the deepest level so far
 
@@ -86,7 +102,7 @@ class JsonStream {
   void quoted(std::string_view s);  // s as dump() writes a string
   void put(std::string_view text) {
     buf_.append(text);
-    if (buf_.size() >= kFlushBytes) flush();
+    if (out_ && buf_.size() >= kFlushBytes) flush();
   }
   void number(double v);
   void dom(const nlohmann::json& v);

@@ -2,6 +2,11 @@
 
 #include "pipeline/json_stream.hpp"
 
+#include <tbb/parallel_pipeline.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+
 namespace raysweep::pipeline {
 
 namespace {
@@ -62,6 +67,36 @@ void write_pair(JsonStream& js, const tracer::PairResult& p, const TraceDocument
       .end_object();
 }
 
+// Formatting is most of the writing (numbers' shortest forms): chunks of
+// pairs are formatted on every core and spliced in order, so the bytes do not
+// depend on the thread count, and a bounded number of chunks is in memory.
+void write_pairs(JsonStream& js, const TraceDocument& doc) {
+  constexpr std::size_t kChunk = 16;
+  const auto& pairs = doc.snapshot->pairs;
+  const std::size_t chunks = (pairs.size() + kChunk - 1) / kChunk;
+  js.key("pairs").begin_array();
+  const JsonStream::Fragment at{js.depth()};
+  std::size_t next = 0;
+  tbb::parallel_pipeline(
+      4 * static_cast<std::size_t>(tbb::this_task_arena::max_concurrency()),
+      tbb::make_filter<void, std::size_t>(tbb::filter_mode::serial_in_order,
+                                          [&](tbb::flow_control& fc) -> std::size_t {
+                                            if (next == chunks) fc.stop();
+                                            return next++;
+                                          }) &
+          tbb::make_filter<std::size_t, std::string>(tbb::filter_mode::parallel,
+                                                     [&](std::size_t c) {
+                                                       JsonStream part(at, 1);
+                                                       const std::size_t end = std::min(pairs.size(), (c + 1) * kChunk);
+                                                       for (std::size_t i = c * kChunk; i < end; ++i)
+                                                         write_pair(part, pairs[i], doc);
+                                                       return part.take();
+                                                     }) &
+          tbb::make_filter<std::string, void>(tbb::filter_mode::serial_in_order,
+                                              [&](const std::string& text) { js.splice(text); }));
+  js.end_array();
+}
+
 void write_nodes(JsonStream& js, const std::vector<tracer::Node>& nodes) {
   js.key("nodes").begin_array();
   for (const auto& n : nodes)
@@ -97,9 +132,7 @@ void write_trace_json(std::ostream& out, const TraceDocument& doc) {
                                         {"n_subcarriers", doc.grid->n_subcarriers},
                                         {"first_offset_hz", doc.grid->offset_hz(0)}});
   write_nodes(js, *doc.nodes);
-  js.key("pairs").begin_array();
-  for (const auto& p : doc.snapshot->pairs) write_pair(js, p, doc);
-  js.end_array();
+  write_pairs(js, doc);
   js.field("provenance", doc.provenance).field("radio", doc.radio).field("stats", stats_json(doc.snapshot->stats));
   js.end_object();
   out << '\n';

@@ -2,6 +2,7 @@
 // dump(indent) writes of the same document; keys out of order are refused.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -116,4 +117,47 @@ TEST(JsonStream, RefusesKeysOutOfOrderAndUnbalancedCalls) {
   arr.begin_array();
   EXPECT_THROW(arr.key("a"), std::logic_error);
   EXPECT_FALSE(arr.complete());
+}
+
+// Elements formatted apart (as `trace` formats chunks of pairs on every core)
+// and spliced in order give the bytes of writing them in place, whatever the
+// split: none, every element alone, empty fragments, at any depth.
+TEST(JsonStream, FragmentsSplicedGiveTheSameBytes) {
+  std::mt19937_64 rng(11);
+  for (int i = 0; i < 200; ++i) {
+    json items = json::array();
+    for (int n = std::uniform_int_distribution<int>(0, 6)(rng); n > 0; --n) items.push_back(random_value(rng, 1));
+    const json doc = {{"a", 1}, {"list", {{"items", items}}}, {"z", "end"}};
+    for (int indent : {1, 2}) {
+      std::ostringstream out;
+      JsonStream js(out, indent);
+      js.begin_object().field("a", 1).key("list").begin_object().key("items").begin_array();
+      std::size_t k = 0;
+      do {  // n = 0: an empty fragment
+        const std::size_t n = std::uniform_int_distribution<std::size_t>(0, items.size() - k)(rng);
+        JsonStream part(JsonStream::Fragment{js.depth()}, indent);
+        for (std::size_t e = k; e < k + n; ++e) stream(part, items[e]);
+        js.splice(part.take());
+        k += n;
+      } while (k < items.size());
+      js.end_array().end_object().field("z", "end").end_object();
+      ASSERT_EQ(out.str(), doc.dump(indent)) << doc.dump();
+    }
+  }
+}
+
+TEST(JsonStream, FragmentsRefuseWhatWouldBreakTheDocument) {
+  JsonStream part(JsonStream::Fragment{2});
+  EXPECT_THROW(part.end_array(), std::logic_error);  // the array is the other stream's
+  EXPECT_THROW(part.key("a"), std::logic_error);      // elements of an array, not members
+  part.begin_object();
+  EXPECT_THROW(part.take(), std::logic_error);  // unfinished
+  part.field("a", 1).end_object();
+  EXPECT_EQ(part.take(), "\n  {\n   \"a\": 1\n  }");
+  EXPECT_THROW(JsonStream(JsonStream::Fragment{0}), std::logic_error);
+  std::ostringstream out;
+  JsonStream js(out);
+  js.begin_object();
+  EXPECT_THROW(js.splice("\n 1"), std::logic_error);  // not inside an array
+  EXPECT_THROW(js.take(), std::logic_error);          // a stream's text goes to its ostream
 }
