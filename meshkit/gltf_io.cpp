@@ -14,6 +14,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <string_view>
 
 #include "meshkit/mat4.hpp"
 #include "meshkit/errors.hpp"
@@ -269,6 +270,9 @@ void tinygltf27_draco_workaround(std::vector<unsigned char>& glb) {
   if (glb.size() < 20 || read_u32(&glb[0]) != 0x46546C67u || read_u32(&glb[8]) != glb.size()) return;
   const std::uint32_t json_len = read_u32(&glb[12]);
   if (read_u32(&glb[16]) != 0x4E4F534Au || json_len > glb.size() - 20) return;
+  // Parsing the JSON chunk only to find nothing to drop cost as much as tinygltf's own parse.
+  const std::string_view text_in(reinterpret_cast<const char*>(glb.data()) + 20, json_len);
+  if (text_in.find(kDracoExtension) == std::string_view::npos) return;
   nlohmann::json doc = nlohmann::json::parse(glb.begin() + 20, glb.begin() + 20 + json_len, nullptr, false);
   if (doc.is_discarded() || !doc.is_object() || !doc.contains("meshes") || !doc["meshes"].is_array()) return;
   bool changed = false;

@@ -201,12 +201,12 @@ static void build_normal_index(TraceScene::Shape& s) {
       const double u0 = -1 + 2.0 * i / kCells, v0 = -1 + 2.0 * j / kCells, h = 2.0 / kCells;
       const Vec3 c = octa_dir(u0 + h / 2, v0 + h / 2);
       // Angular radius of the cell: the farthest of a 9 x 9 grid over it
-      // (with margin: the map is smooth within a cell).
-      double radius = 0;
+      // (with margin: the map is smooth within a cell); acos decreases, so
+      // one acos of the smallest cosine.
+      double min_cos = 1;
       for (int a = 0; a <= 8; ++a)
-        for (int b = 0; b <= 8; ++b)
-          radius = std::max(radius, std::acos(std::clamp(dot(c, octa_dir(u0 + h * a / 8, v0 + h * b / 8)), -1.0, 1.0)));
-      radius = radius * 1.25 + 1e-3;
+        for (int b = 0; b <= 8; ++b) min_cos = std::min(min_cos, dot(c, octa_dir(u0 + h * a / 8, v0 + h * b / 8)));
+      const double radius = std::acos(std::clamp(min_cos, -1.0, 1.0)) * 1.25 + 1e-3;
       for (int level = 0; level < 5; ++level) {
         const double cos_max = std::cos(std::min(kPi / 2, NormalIndex::kLevels[level] + radius));
         auto& list = ix.lists[(level * kCells + i) * kCells + j];
