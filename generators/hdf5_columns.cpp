@@ -331,10 +331,10 @@ void ColumnFile::table(const std::string& group_name, const std::string& name, D
   if (dset.close() < 0) write_fail(file_, where, "cannot close dataset");
 }
 
-void ColumnFile::write_whole_chunks(bool full_buffers_only) {
+void ColumnFile::write_whole_chunks(bool full_buffers_only, bool tail) {
   struct Job {
     Column* column;
-    std::size_t chunk;  // index among the column's buffered whole chunks
+    std::size_t chunk;  // index among the column's buffered chunks
     std::vector<unsigned char> z;
   };
   if (!kLittleEndian) return;  // the library's path converts
@@ -344,21 +344,33 @@ void ColumnFile::write_whole_chunks(bool full_buffers_only) {
     // chunk is no longer chunk-aligned. Both take the library's path.
     if (c->dtype == Dtype::str || c->rows_written % c->chunk_rows != 0) continue;
     if (full_buffers_only && c->buf.size() < kFlushBytes) continue;
-    const hsize_t chunks = c->buffered_rows() / c->chunk_rows;
+    const hsize_t rows = c->buffered_rows();
+    const hsize_t chunks = tail ? (rows + c->chunk_rows - 1) / c->chunk_rows : rows / c->chunk_rows;
     for (hsize_t k = 0; k < chunks; ++k) jobs.push_back({c.get(), static_cast<std::size_t>(k), {}});
   }
   if (jobs.empty()) return;
+  // A partial chunk is stored as a whole one: the rows past the dataset's
+  // extent are zeros, what the library's own path (H5Dwrite, compressed at
+  // H5Dclose on one thread, half of a one-frame trace's writing) stores too.
   tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t j) {
     Job& job = jobs[j];
-    const std::size_t bytes = static_cast<std::size_t>(job.column->chunk_rows) * job.column->row_bytes();
-    job.z = shuffle_deflate(job.column->buf.data() + job.chunk * bytes, bytes, dtype_bytes(job.column->dtype));
+    const Column& c = *job.column;
+    const std::size_t bytes = static_cast<std::size_t>(c.chunk_rows) * c.row_bytes();
+    const std::size_t from = job.chunk * bytes;
+    if (from + bytes <= c.buf.size()) {
+      job.z = shuffle_deflate(c.buf.data() + from, bytes, dtype_bytes(c.dtype));
+    } else {
+      std::vector<unsigned char> padded(bytes, 0);
+      std::copy(c.buf.begin() + static_cast<std::ptrdiff_t>(from), c.buf.end(), padded.begin());
+      job.z = shuffle_deflate(padded.data(), bytes, dtype_bytes(c.dtype));
+    }
   });
   // Written in column then chunk order, on this thread: the same calls for the same input.
   for (std::size_t j = 0; j < jobs.size();) {
     Column& c = *jobs[j].column;
     std::size_t e = j;
     while (e < jobs.size() && jobs[e].column == &c) ++e;
-    const hsize_t rows = static_cast<hsize_t>(e - j) * c.chunk_rows;
+    const hsize_t rows = std::min<hsize_t>(static_cast<hsize_t>(e - j) * c.chunk_rows, c.buffered_rows());
     const hsize_t new_dims[2] = {c.rows_written + rows, c.width};
     if (H5Dset_extent(c.dset.get(), new_dims) < 0) write_fail(file_, c.name, "cannot extend dataset");
     for (; j < e; ++j) {
@@ -378,7 +390,7 @@ void ColumnFile::maybe_flush() {
 }
 
 void ColumnFile::flush_all() {
-  write_whole_chunks(false);
+  write_whole_chunks(false, true);
   for (auto& c : columns_) c->flush(file_, true);
 }
 

@@ -159,8 +159,9 @@ class ColumnFile {
   std::vector<std::unique_ptr<Column>> columns_;
 
   // The buffered whole chunks of the chunk-aligned columns (of those holding
-  // about a flush's worth when full_buffers_only), compressed in parallel.
-  void write_whole_chunks(bool full_buffers_only);
+  // about a flush's worth when full_buffers_only), compressed in parallel;
+  // with `tail`, each one's last, partial chunk as well (zero-padded).
+  void write_whole_chunks(bool full_buffers_only, bool tail = false);
 
   hsize_t fixed_dim(const nlohmann::json& d) const;
   const nlohmann::json& attr_spec(const std::string& group, const std::string& name, const char* dtype) const;
