@@ -10,6 +10,7 @@
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/scene_cache.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/version.hpp"
@@ -73,7 +74,7 @@ bool up_to_date(const fs::path& out, const json& key) {
 
 generators::HeightMap height_map(const FeaturesInputs& in) {
   const auto t0 = std::chrono::steady_clock::now();
-  const meshkit::Scene scene = exclude_objects(meshkit::read_glb(in.scene_glb.string()), in.settings.sweep.exclude_objects);
+  const meshkit::Scene scene = exclude_objects(read_scene_glb(in.scene_glb.parent_path()), in.settings.sweep.exclude_objects);
   const tracer::TraceScene traced(scene);
   auto map = generators::HeightMap::build(traced, scene.bounds(), in.settings.features.grid.map_resolution_m);
   spdlog::info("features: height map of {} cells ({:.2f} m) in {:.1f} s", map.cells(),

@@ -25,6 +25,7 @@
 #include "pipeline/quantile.hpp"
 #include "pipeline/radiomap_vdb.hpp"
 #include "pipeline/render_stage.hpp"
+#include "pipeline/scene_cache.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/trace_stage.hpp"
@@ -379,7 +380,7 @@ json run_radiomap_stage(const RadioMapArgs& args, const Settings& all, const std
 
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file)) throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
-  tracer::TraceScene scene(meshkit::read_glb(scene_file.string()));
+  tracer::TraceScene scene(read_scene_glb(scene_file.parent_path()));
   scene.set_precompute_store(scene_precompute_store(args.scene));
   std::vector<InputFile> inputs{{"scene", scene_file.string()}};
   if (!all.file.empty()) inputs.push_back({"config", all.file});

@@ -22,6 +22,7 @@
 #include "pipeline/fcd.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/scene_cache.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
@@ -502,7 +503,7 @@ json run_sweep_stage(const SweepArgs& args, const Settings& all, const std::vect
   prepare_parts(args, parts, id.run_key);
 
   // Scene, library, types, road-side units.
-  tracer::TraceScene scene(exclude_objects(meshkit::read_glb(scene_file.string()), cfg.exclude_objects));
+  tracer::TraceScene scene(exclude_objects(read_scene_glb(scene_file.parent_path()), cfg.exclude_objects));
   scene.set_precompute_store(scene_precompute_store(scene_file.parent_path()));
   const auto bounds = scene.static_bounds();
   VehicleLibrary library(args.vehicles, cfg.lod);

@@ -12,6 +12,7 @@
 #include "pipeline/peer_export.hpp"
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
+#include "pipeline/scene_cache.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/trace_h5.hpp"
 #include "pipeline/trace_inputs.hpp"
@@ -80,7 +81,7 @@ void load_snapshot(const TraceArgs& args, const std::string& config_file, Snapsh
   const fs::path scene_file = fs::path(args.scene) / "scene.glb";
   if (!fs::exists(scene_file))
     throw std::invalid_argument(args.scene + ": no scene.glb (run `raysweep scene` first)");
-  in.scene.emplace(exclude_objects(meshkit::read_glb(scene_file.string()), args.exclude_objects));
+  in.scene.emplace(exclude_objects(read_scene_glb(scene_file.parent_path()), args.exclude_objects));
   in.scene->set_precompute_store(scene_precompute_store(args.scene));
   in.files.push_back({"scene", scene_file.string()});
   if (!config_file.empty()) in.files.push_back({"config", config_file});

@@ -24,6 +24,7 @@
 #include "pipeline/precompute_store.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/quantile.hpp"
+#include "pipeline/scene_cache.hpp"
 #include "pipeline/settings/tables.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
@@ -983,7 +984,7 @@ json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>
   for (const auto& s : run.grid) tracer::validate(s.tracer, settings.radio);
 
   spdlog::info("tradeoff: reading {} and {}", in.scene_file.string(), in.fcd);
-  TradeoffScenes scenes(exclude_objects(meshkit::read_glb(in.scene_file.string()), cfg.exclude_objects), in.vehicles_dir,
+  TradeoffScenes scenes(exclude_objects(read_scene_glb(in.scene_file.parent_path()), cfg.exclude_objects), in.vehicles_dir,
                         scene_precompute_store(in.scene_file.parent_path()));
   const VTypeMap vtypes = read_vtype_files(in.vtype_files);
   FcdTypeModels type_models(vtypes, scenes.library(base.lod), in.library_mode(), in.fcd);

@@ -196,7 +196,8 @@ static void build_normal_index(TraceScene::Shape& s) {
   ix.all.resize(nf);
   for (std::uint32_t f = 0; f < nf; ++f) ix.all[f] = f;
   ix.lists.assign(5 * kCells * kCells, {});
-  for (int i = 0; i < kCells; ++i)
+  // Rows of cells on every core: each cell's lists are its own.
+  tbb::parallel_for(0, kCells, [&](int i) {
     for (int j = 0; j < kCells; ++j) {
       const double u0 = -1 + 2.0 * i / kCells, v0 = -1 + 2.0 * j / kCells, h = 2.0 / kCells;
       const Vec3 c = octa_dir(u0 + h / 2, v0 + h / 2);
@@ -214,6 +215,7 @@ static void build_normal_index(TraceScene::Shape& s) {
           if (std::fabs(dot(s.face_plane[f].normal, c)) >= cos_max) list.push_back(f);
       }
     }
+  });
 }
 
 // Attaches a shape's triangles (float, relative to `origin`) to `scene` as

@@ -263,9 +263,9 @@ TEST(CliTrace, WritesTheOneFrameChannelDataset) {
   EXPECT_TRUE(info["has_cfr"].get<bool>());
 }
 
-// The models' precomputed tables land in the scene's cache/ and the next
-// process loads them; a damaged one is rebuilt with a warning. The document
-// is the same each time.
+// The models' precomputed tables and the decoded scene land in the scene's
+// cache/ and the next process loads them; a damaged one is rebuilt with a
+// warning. The document is the same each time.
 TEST(CliTrace, KeepsModelTablesBesideTheScene) {
   auto dir = scratch_dir("cache");
   fs::copy(demo_scene(), dir / "scene", fs::copy_options::recursive);
@@ -279,13 +279,16 @@ TEST(CliTrace, KeepsModelTablesBesideTheScene) {
   };
   auto r = run_raysweep(args + " --out " + (dir / "a.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
-  std::vector<fs::path> tables;
-  for (const auto& e : fs::directory_iterator(dir / "scene" / "cache")) tables.push_back(e.path());
+  std::vector<fs::path> tables, scenes;
+  for (const auto& e : fs::directory_iterator(dir / "scene" / "cache"))
+    (e.path().filename().string().rfind("scene-", 0) == 0 ? scenes : tables).push_back(e.path());
   ASSERT_EQ(tables.size(), 4u);  // two models: a mount list and a bounce table each
-  const auto stamp = fs::last_write_time(tables[0]);
+  ASSERT_EQ(scenes.size(), 1u);  // scene.glb decoded (pipeline/scene_cache.hpp)
+  const auto stamp = fs::last_write_time(tables[0]), scene_stamp = fs::last_write_time(scenes[0]);
   r = run_raysweep(args + " --out " + (dir / "b.json").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(fs::last_write_time(tables[0]), stamp);  // loaded, not written again
+  EXPECT_EQ(fs::last_write_time(scenes[0]), scene_stamp);
   EXPECT_EQ(strip(json::parse(read_text(dir / "a.json"))), strip(json::parse(read_text(dir / "b.json"))));
   fs::resize_file(tables[1], fs::file_size(tables[1]) / 2);
   r = run_raysweep(args + " --out " + (dir / "c.json").string());
