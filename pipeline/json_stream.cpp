@@ -17,6 +17,7 @@ JsonStream::JsonStream(Fragment at, int indent) : indent_(indent), base_(at.dept
   if (at.depth == 0) throw std::logic_error("JsonStream: a fragment inside no array");
   levels_.resize(at.depth);
   levels_.back().spliced = true;
+  buf_.reserve(kFragmentBytes);
   wrote_root_ = true;
 }
 
@@ -52,17 +53,29 @@ void JsonStream::newline(std::size_t depth) {
   put(std::string_view(pad_.data(), n));
 }
 
+namespace {
+
 // Printable ASCII without quote or backslash is its own JSON text; anything
-// else (escapes, UTF-8 checks) goes through dump() itself.
+// else (escapes, UTF-8 checks) goes through dump() itself. A table: keys and
+// names are most of a trace document's strings.
+constexpr std::array<bool, 256> kNeedsDump = [] {
+  std::array<bool, 256> t{};
+  for (int c = 0; c < 256; ++c) t[c] = c < 0x20 || c > 0x7e || c == '"' || c == '\\';
+  return t;
+}();
+
+}  // namespace
+
 void JsonStream::quoted(std::string_view s) {
   for (unsigned char c : s)
-    if (c < 0x20 || c > 0x7e || c == '"' || c == '\\') {
+    if (kNeedsDump[c]) {
       put(nlohmann::json(std::string(s)).dump());
       return;
     }
-  buf_ += '"';
-  buf_.append(s);
-  put("\"");
+  buf_.push_back('"');
+  buf_.append(s.data(), s.size());
+  buf_.push_back('"');
+  if (out_ && buf_.size() >= kFlushBytes) flush();
 }
 
 void JsonStream::string(std::string_view s) {
@@ -101,7 +114,7 @@ JsonStream& JsonStream::key(std::string_view k) {
   l.last_key = k;
   newline(levels_.size());
   quoted(k);
-  put(": ");
+  buf_.append(": ", 2);
   return *this;
 }
 

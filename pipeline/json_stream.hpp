@@ -59,6 +59,11 @@ class JsonStream {
     }
     return *this;
   }
+  // A scalar already in JSON text (a string quoted once for many uses, null).
+  JsonStream& json_text(std::string_view text) {
+    scalar(text);
+    return *this;
+  }
   template <class T>
   JsonStream& field(std::string_view k, const T& v) {
     return key(k).value(v);
@@ -88,6 +93,7 @@ class JsonStream {
     std::string last_key;
   };
   static constexpr std::size_t kFlushBytes = 1 << 20;
+  static constexpr std::size_t kFragmentBytes = 1 << 17;  // a trace's chunk of 16 pairs is about 110 kB
   std::ostream* out_ = nullptr;  // none for a fragment
   std::string buf_;  // text not yet handed to out_ (one write per MiB, not one per token)
   int indent_;

@@ -12,18 +12,30 @@ namespace raysweep::pipeline {
 namespace {
 
 // JSON has no infinities: a pair without paths reports null gains.
-nlohmann::json db_or_null(double linear) {
-  if (!(linear > 0)) return nullptr;
-  return tracer::to_db(linear);
+void db_or_null(JsonStream& js, std::string_view key, double linear) {
+  js.key(key);
+  if (linear > 0) js.value(tracer::to_db(linear));
+  else js.json_text("null");
 }
 
-void write_path(JsonStream& js, const tracer::Path& path, const TraceDocument& doc) {
+// Object and material names as JSON strings, quoted once: they repeat in
+// every interaction, and Sionna scenes' names carry UTF-8 that only dump()
+// may vouch for.
+struct QuotedNames {
+  std::vector<std::string> objects, materials;
+  explicit QuotedNames(const TraceDocument& doc) {
+    for (const auto& n : *doc.objects) objects.push_back(nlohmann::json(n).dump());
+    for (const auto& n : *doc.materials) materials.push_back(nlohmann::json(n).dump());
+  }
+};
+
+void write_path(JsonStream& js, const tracer::Path& path, const QuotedNames& names) {
   js.begin_object().field("a_im", path.a.imag()).field("a_re", path.a.real()).field("doppler_hz", path.doppler_hz);
   js.key("interactions").begin_array();
   for (const auto& i : path.interactions)
     js.begin_object()
-        .field("material", doc.materials->at(i.material))
-        .field("object", doc.objects->at(i.object))
+        .key("material").json_text(names.materials.at(i.material))
+        .key("object").json_text(names.objects.at(i.object))
         .number_array("point", i.point)
         .field("type", tracer::interaction_name(i.type))
         .end_object();
@@ -42,9 +54,9 @@ void write_cfr(JsonStream& js, const tracer::PairResult& p, const tracer::OfdmGr
 }
 
 // Keys in the order std::map sorts them (the stream checks it).
-void write_pair(JsonStream& js, const tracer::PairResult& p, const TraceDocument& doc) {
+void write_pair(JsonStream& js, const tracer::PairResult& p, const TraceDocument& doc, const QuotedNames& names) {
   js.begin_object().key("blockers").begin_array();
-  for (auto b : p.blockers) js.value(doc.objects->at(b));
+  for (auto b : p.blockers) js.json_text(names.objects.at(b));
   js.end_array().field("candidates", p.candidates);
   if (doc.grid) write_cfr(js, p, *doc.grid);
   js.field("delay_s", p.stats.first_delay_s)
@@ -53,11 +65,11 @@ void write_pair(JsonStream& js, const tracer::PairResult& p, const TraceDocument
       .field("los_class", tracer::los_class_name(p.los_class))
       .field("los_class_fresnel", tracer::los_class_name(p.fresnel_class))
       .field("n_paths", p.paths.size())
-      .field("out_of_range", p.out_of_range)
-      .field("path_gain_db", db_or_null(p.stats.gain_coherent))
-      .field("path_gain_incoherent_db", db_or_null(p.stats.gain_incoherent));
+      .field("out_of_range", p.out_of_range);
+  db_or_null(js, "path_gain_db", p.stats.gain_coherent);
+  db_or_null(js, "path_gain_incoherent_db", p.stats.gain_incoherent);
   js.key("paths").begin_array();
-  for (const auto& path : p.paths) write_path(js, path, doc);
+  for (const auto& path : p.paths) write_path(js, path, names);
   js.end_array();
   js.field("paths_below_threshold", p.dropped_threshold)
       .field("rms_delay_spread_s", p.stats.rms_delay_spread_s)
@@ -76,6 +88,7 @@ void write_pairs(JsonStream& js, const TraceDocument& doc) {
   const std::size_t chunks = (pairs.size() + kChunk - 1) / kChunk;
   js.key("pairs").begin_array();
   const JsonStream::Fragment at{js.depth()};
+  const QuotedNames names(doc);
   std::size_t next = 0;
   tbb::parallel_pipeline(
       4 * static_cast<std::size_t>(tbb::this_task_arena::max_concurrency()),
@@ -89,7 +102,7 @@ void write_pairs(JsonStream& js, const TraceDocument& doc) {
                                                        JsonStream part(at, 1);
                                                        const std::size_t end = std::min(pairs.size(), (c + 1) * kChunk);
                                                        for (std::size_t i = c * kChunk; i < end; ++i)
-                                                         write_pair(part, pairs[i], doc);
+                                                         write_pair(part, pairs[i], doc, names);
                                                        return part.take();
                                                      }) &
           tbb::make_filter<std::string, void>(tbb::filter_mode::serial_in_order,
