@@ -1614,9 +1614,22 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
 }
 
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out) {
+                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only) {
   const auto& edges = scene.edges();
-  if (edges.empty()) return;
+  if (edges.empty() || (only && only->empty())) return;
+  // The tree the walk runs down: every edge's, or one over `only`.
+  const std::vector<ImageFaces::SphereNode>* tree = &faces.edge_tree;
+  const std::vector<std::uint32_t>* order = &faces.edge_order;
+  std::vector<ImageFaces::SphereNode> only_tree;
+  std::vector<std::uint32_t> only_order;
+  if (only) {
+    only_order = *only;
+    const std::vector<double> no_tol(edges.size(), 0.0);
+    build_sphere_tree(faces.edge_spheres, no_tol, only_tree, only_order, 0,
+                      static_cast<std::uint32_t>(only_order.size()));
+    tree = &only_tree;
+    order = &only_order;
+  }
   std::vector<Vec3> pyramid;
   std::vector<std::uint32_t> stack;
   for (std::uint32_t f = 0; f < faces.static_count; ++f) {
@@ -1642,7 +1655,7 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
       if (norm(sp.centre - img) - sp.radius > range) return true;
       return outside_pyramid(pyramid, img, sp, tol + faces.tol[f], spread_per_m);
     };
-    walk_tree(faces.edge_tree, faces.edge_order, stack, outside, [&](std::uint32_t k) {
+    walk_tree(*tree, *order, stack, outside, [&](std::uint32_t k) {
       if (outside(faces.edge_spheres[k], 0)) return;
       const Edge& e = edges[k];
       // The part of the edge inside the beam: the segment clipped by the

@@ -258,8 +258,12 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
                            std::size_t count, const FaceRef* skip, double tol);
 
 // Every such combination from `src`, sorted (reflection-diffraction; from
-// the other end, diffraction-reflection).
+// the other end, diffraction-reflection). With `only` (edge ids, sorted),
+// just the combinations on those edges: the same entries, in the same
+// order, as the whole list filtered to them. A pair uses only the edges its
+// other end sees, and a source's partners see a small part of a city's
+// edges: the walk then runs down a tree over those alone.
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out);
+                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only = nullptr);
 
 }  // namespace raysweep::tracer

@@ -5,6 +5,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
 
@@ -84,10 +85,10 @@ class Diffraction final : public Mechanism {
     edge_r_.resize(n);
     const auto& edges = plan.scene.edges();
     const auto& faces = plan.faces();
+    const std::size_t words = (edges.size() + 63) / 64;
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
       if (!plan.is_source[i]) return;
-      reflected_edges(plan.scene, faces, plan.nodes[i].position, plan.range, reflected_[i]);
-      seen_bits_[i].assign((edges.size() + 63) / 64, 0);
+      seen_bits_[i].assign(words, 0);
       for (auto k : seen_[i]) seen_bits_[i][k >> 6] |= std::uint64_t{1} << (k & 63);
       edge_z_[i].resize(edges.size());
       edge_r_[i].resize(edges.size());
@@ -96,6 +97,19 @@ class Diffraction final : public Mechanism {
         edge_z_[i][k] = dot(w, edges[k].e);
         edge_r_[i][k] = norm(w - edge_z_[i][k] * edges[k].e);
       }
+    });
+    // A source's combinations serve its pairs only on the edges their other
+    // ends see (add_reflected): the rest of the city's edges are not walked.
+    tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
+      if (!plan.is_source[i]) return;
+      std::vector<std::uint64_t> wanted(words, 0);
+      for (const auto j : plan.partners[i])  // partners are sources: their bits are set above
+        for (std::size_t w = 0; w < words; ++w) wanted[w] |= seen_bits_[j][w];
+      std::vector<std::uint32_t> only;
+      for (std::size_t w = 0; w < words; ++w)
+        for (std::uint64_t bits = wanted[w]; bits; bits &= bits - 1)
+          only.push_back(static_cast<std::uint32_t>(64 * w + std::countr_zero(bits)));
+      reflected_edges(plan.scene, faces, plan.nodes[i].position, plan.range, reflected_[i], &only);
     });
   }
 

@@ -1696,3 +1696,36 @@ TEST(Diffraction, PlateEdgesGiveThePhysicalOpticsLobeWhereReflectionMisses) {
     EXPECT_NEAR(db20(std::abs(utd)), db20(std::abs(po)), c.tolerance_db) << c.tx_z << " " << c.rx_z;
   }
 }
+
+// A source's reflection-diffraction combinations restricted to some edges
+// (those its pairs' other ends see) are the whole list's entries on those
+// edges, in the same order: the restriction only skips work.
+TEST(DiffractionReflection, CombinationsOnChosenEdgesAreTheWholeListFiltered) {
+  meshkit::Scene s;
+  for (int bx = 0; bx < 3; ++bx)
+    for (int by = 0; by < 3; ++by)
+      add_box_object(s, {30.0 * bx, 30.0 * by, 0}, {30.0 * bx + 18, 30.0 * by + 20, 9.0 + 3 * ((bx + by) % 3)},
+                     "concrete", "b" + std::to_string(bx) + std::to_string(by));
+  add_ground(s, 300);
+  tracer::TraceScene scene(s);
+  const auto faces = tracer::image_faces(scene);
+  const Vec3 src{24, 25, 1.5};  // in the streets between the blocks
+  std::vector<tracer::ReflectedEdge> all;
+  tracer::reflected_edges(scene, faces, src, 1e4, all);
+  ASSERT_GT(all.size(), 50u);
+  // Every third edge of the scene, whether or not the whole list names it.
+  std::vector<std::uint32_t> only;
+  for (std::uint32_t k = 0; k < scene.edges().size(); k += 3) only.push_back(k);
+  std::vector<tracer::ReflectedEdge> expected;
+  for (const auto& re : all)
+    if (re.edge % 3 == 0) expected.push_back(re);
+  ASSERT_FALSE(expected.empty());
+  ASSERT_LT(expected.size(), all.size());
+  std::vector<tracer::ReflectedEdge> chosen;
+  tracer::reflected_edges(scene, faces, src, 1e4, chosen, &only);
+  EXPECT_EQ(chosen, expected);
+  const std::vector<std::uint32_t> none;
+  std::vector<tracer::ReflectedEdge> empty;
+  tracer::reflected_edges(scene, faces, src, 1e4, empty, &none);
+  EXPECT_TRUE(empty.empty());
+}
