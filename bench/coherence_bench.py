@@ -4,7 +4,9 @@
 For each city, the sweep stage of `raysweep run CITY --until sweep` in one
 session with `--set sweep.coherence=false` and with `=true` under each rule of
 --variants (the default rule; `every-pair`: every pair re-solved that can be;
-`every-pair-no-net`: the same without the interval and margin), the
+`every-pair-no-net`: the same without the interval and margin; `lattice`: not
+a rule but the from-scratch sweep on another ray lattice, 6143 rays a source,
+the reference's own sampling noise), the
 from-scratch run first or last alternating per city, on the same scene,
 vehicles and traffic:
 
@@ -15,6 +17,12 @@ vehicles and traffic:
   pair-frames; |wideband gain difference| (gain_incoherent_db, both floored
   at the sensitivity floor, sensitivity - tx power) p50 / p99 / max.
 
+With --explain, every sweep stores its paths, and each variant's pair-frames
+more than 1 dB weaker than the reference are explained: the reference's paths
+the variant does not have (matched by interaction types and objects), by kind
+(S specular, R refraction, D diffuse, X diffraction; s static, v vehicle), as
+shares of the missing power and as the strongest missing path.
+
 With --scaling, the per-frame cost against the number of vehicles: the first
 N vehicles of each frame (`sweep.max_vehicles`) over --scaling-frames frames,
 both modes, on the demo city and (when ../shared holds it) the ring road
@@ -22,6 +30,7 @@ both modes, on the demo city and (when ../shared holds it) the ring road
 
     /usr/bin/python3 bench/coherence_bench.py                    # demo 300 frames, ring 600
     /usr/bin/python3 bench/coherence_bench.py --cases demo --demo-frames 50 --variants default,every-pair,every-pair-no-net
+    /usr/bin/python3 bench/coherence_bench.py --cases demo --demo-frames 50 --variants lattice,every-pair --explain
     /usr/bin/python3 bench/coherence_bench.py --scaling 5,10,20,40,60,120
 
 Writes results.json, results.md and (with --scaling) scaling.png under --out.
@@ -86,6 +95,61 @@ def budget(ref_path, path, floor_db):
         }
 
 
+def path_kind(types, objects, static_count):
+    """A path's interactions as a word: S(pecular), R(efraction), D(iffuse),
+    X (diffraction), each on s(tatic) or v(ehicle); 'direct' for none."""
+    if not len(types):
+        return "direct"
+    return "-".join("SRDX"[t - 1] + ("v" if o >= static_count else "s") for t, o in zip(types, objects))
+
+
+def missing_paths(ref_path, path, floor_db, worse_db=1.0):
+    """On the pair-frames whose gain is more than `worse_db` below the
+    reference's, the paths the reference has and the coherent sweep does not
+    (matched by their interaction types and objects), by kind: the share of
+    the missing power each kind carries, and how often it is the strongest
+    missing path (needs store = "paths")."""
+    def load(f):
+        links, paths, inter = f["links"], f["paths"], f["interactions"]
+        return {"g": links["gain_incoherent_db"][:].astype(float), "off": links["path_offset"][:],
+                "n": links["path_count"][:], "a": paths["a"][:], "ic": paths["interaction_count"][:],
+                "io": paths["interaction_offset"][:], "t": inter["type"][:], "o": inter["object"][:]}
+
+    with h5py.File(ref_path, "r") as fa, h5py.File(path, "r") as fb:
+        static_count = len(fa["objects/name"]) - len(fa["nodes/id"])
+        a, b = load(fa), load(fb)
+    ga = np.maximum(np.nan_to_num(a["g"], neginf=floor_db), floor_db)
+    gb = np.maximum(np.nan_to_num(b["g"], neginf=floor_db), floor_db)
+    worse = np.flatnonzero(gb - ga < -worse_db)
+
+    def sig(d, p):
+        o, n = d["io"][p], d["ic"][p]
+        return tuple(d["t"][o:o + n].tolist()), tuple(d["o"][o:o + n].tolist())
+
+    power, strongest = {}, {}
+    missing_total = 0.0
+    for link in worse:
+        ref = {}
+        for p in range(a["off"][link], a["off"][link] + a["n"][link]):
+            key = sig(a, p)
+            ref[key] = ref.get(key, 0.0) + float(abs(a["a"][p]) ** 2)
+        have = {sig(b, p) for p in range(b["off"][link], b["off"][link] + b["n"][link])}
+        gone = {k: w for k, w in ref.items() if k not in have}
+        if not gone:
+            continue
+        for (types, objects), w in gone.items():
+            kind = path_kind(types, objects, static_count)
+            power[kind] = power.get(kind, 0.0) + w / sum(ref.values())
+        missing_total += sum(gone.values()) / sum(ref.values())
+        top = max(gone, key=gone.get)
+        kind = path_kind(*top, static_count)
+        strongest[kind] = strongest.get(kind, 0) + 1
+    kinds = sorted(power, key=power.get, reverse=True)
+    return {"worse_db": worse_db, "pair_frames": int(worse.size),
+            "kinds": [{"kind": k, "power_share": round(power[k] / max(missing_total, 1e-30), 3),
+                       "strongest": strongest.get(k, 0)} for k in kinds[:12]]}
+
+
 def floor_of(path):
     """sensitivity - tx power of the [radio] the dataset was swept with."""
     with h5py.File(path, "r") as f:
@@ -98,6 +162,9 @@ def floor_of(path):
 # interval and margin, and without them.
 VARIANTS = {
     "default": [],
+    # Not a coherence rule: the from-scratch sweep on another ray lattice
+    # (6143 rays instead of 6144), the reference's own sampling noise.
+    "lattice": ["sweep.coherence=false", "tracer.rays_per_source=6143"],
     "every-pair": ["sweep.coherence_volatile_share=1", "sweep.coherence_direct_share=0",
                    "sweep.coherence_clear_zone_only=false"],
     "every-pair-no-net": ["sweep.coherence_volatile_share=1", "sweep.coherence_direct_share=0",
@@ -106,11 +173,13 @@ VARIANTS = {
 }
 
 
-def compare_case(rs, name, city, out, extra, first_on, variants):
+def compare_case(rs, name, city, out, extra, first_on, variants, explain=False):
     """The sweep from scratch, then each variant with coherence on (or the
     reverse order): times, searched share and the error budget of each."""
     os.makedirs(out, exist_ok=True)
     runs = [("off", ["sweep.coherence=false"])] + [(v, ["sweep.coherence=true"] + VARIANTS[v]) for v in variants]
+    if explain:
+        runs = [(mode, sets + ['sweep.store="paths"']) for mode, sets in runs]
     if first_on:
         runs = runs[1:] + runs[:1]
     result = {}
@@ -129,6 +198,8 @@ def compare_case(rs, name, city, out, extra, first_on, variants):
                "searched_share": round(on["searched"] / max(1, on["traced"]), 3)}
         ref = os.path.join(out, "coherence_off.h5")
         row.update(budget(ref, os.path.join(out, f"coherence_{v}.h5"), floor_of(ref)))
+        if explain:
+            row["missing"] = missing_paths(ref, os.path.join(out, f"coherence_{v}.h5"), floor_of(ref))
         print(json.dumps(row), flush=True)
         rows.append(row)
     return rows
@@ -142,6 +213,8 @@ def main():
     ap.add_argument("--ring-frames", type=int, default=600)
     ap.add_argument("--demo-frames", type=int, default=300)
     ap.add_argument("--variants", default="default", help="rules to compare: " + ", ".join(VARIANTS))
+    ap.add_argument("--explain", action="store_true",
+                    help="store paths and attribute each rule's missing power to kinds of paths")
     ap.add_argument("--scaling", default="", help="vehicle counts for the per-frame cost curve (e.g. 5,10,20)")
     ap.add_argument("--scaling-frames", type=int, default=20)
     args = ap.parse_args()
@@ -154,11 +227,11 @@ def main():
         if case == "demo":
             end = 60 + args.demo_frames / 10 - 0.05
             rows += compare_case(rs, "demo", DEMO, os.path.join(args.out, "demo"), [f"sweep.end_s={end}"],
-                                 k % 2 == 0, variants)
+                                 k % 2 == 0, variants, args.explain)
         elif case == "ring" and have_ring:
             end = 70 + args.ring_frames / 10 - 0.05
             rows += compare_case(rs, "ring", RING, os.path.join(args.out, "ring"), [f"sweep.end_s={end}"],
-                                 k % 2 == 0, variants)
+                                 k % 2 == 0, variants, args.explain)
         elif case == "ring":
             print("ring: skipped (../shared/data absent)")
 
@@ -189,6 +262,15 @@ def main():
         f.write("| " + " | ".join(cols) + " |\n|" + "---|" * len(cols) + "\n")
         for r in rows:
             f.write("| " + " | ".join(str(r.get(c, "")) for c in cols) + " |\n")
+        for r in rows:
+            if "missing" not in r:
+                continue
+            m = r["missing"]
+            f.write(f"\n{r['case']}, {r['rule']}: paths missing on the {m['pair_frames']} pair-frames more than "
+                    f"{m['worse_db']} dB weaker than the reference\n\n| kind | share of the missing power | "
+                    "strongest missing path |\n|---|---|---|\n")
+            for k in m["kinds"]:
+                f.write(f"| {k['kind']} | {k['power_share']:.3f} | {k['strongest']} |\n")
         if scaling:
             f.write("\n| city | vehicles | ms/frame coherence off | on | ratio |\n|---|---|---|---|---|\n")
             for r in scaling:
