@@ -21,6 +21,7 @@
 namespace fs = std::filesystem;
 using namespace raysweep::meshkit;
 using raysweep::test::add_box;
+using raysweep::test::expect_same_scene;
 
 namespace {
 
@@ -70,34 +71,6 @@ double max_abs_coord(const Mesh& m) {
   for (const Vec3& v : m.vertices)
     for (double c : v) r = std::max(r, std::abs(c));
   return r;
-}
-
-// Everything but vertex positions must survive exactly; positions within tol
-// per coordinate, compared per triangle corner so a vertex reordering by the
-// codec could not hide or fake anything.
-void expect_same_scene(const Scene& a, const Scene& b, const std::vector<double>& tol) {
-  ASSERT_EQ(a.objects.size(), b.objects.size());
-  for (std::size_t i = 0; i < a.objects.size(); ++i) {
-    EXPECT_EQ(a.objects[i].kind, b.objects[i].kind);
-    EXPECT_EQ(a.objects[i].source_id, b.objects[i].source_id);
-  }
-  ASSERT_EQ(a.meshes.size(), b.meshes.size());
-  for (std::size_t i = 0; i < a.meshes.size(); ++i) {
-    const Mesh& x = a.meshes[i];
-    const Mesh& y = b.meshes[i];
-    SCOPED_TRACE(x.name);
-    EXPECT_EQ(x.name, y.name);
-    EXPECT_EQ(x.material, y.material);
-    EXPECT_EQ(x.triangle_object, y.triangle_object);
-    EXPECT_EQ(x.triangle_face, y.triangle_face);
-    ASSERT_EQ(x.triangles.size(), y.triangles.size());
-    double worst = 0;
-    for (std::size_t t = 0; t < x.triangles.size(); ++t)
-      for (int c = 0; c < 3; ++c)
-        for (int k = 0; k < 3; ++k)
-          worst = std::max(worst, std::abs(x.vertices[x.triangles[t][c]][k] - y.vertices[y.triangles[t][c]][k]));
-    EXPECT_LE(worst, tol[i]) << "mesh " << x.name;
-  }
 }
 
 std::vector<unsigned char> read_bytes(const fs::path& p) {
