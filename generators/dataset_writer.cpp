@@ -64,6 +64,7 @@ struct DatasetWriter::Impl {
   }
 
   void create() {
+    for (const auto& [dim, rows] : header.expected_rows) out.expect_rows(dim, rows);
     out.create();
     out.identity_attrs(kDatasetFormat, kDatasetSchemaVersion, header.raysweep_version, header.git_hash, header.config, header.inputs,
                        header.provenance, header.seed);

@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <memory>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,10 @@ struct DatasetHeader {
   // Shard files only (JSON text of the root attribute `shard`, see schemas/README.md);
   // empty for whole datasets.
   std::string shard;
+  // The rows each first-axis dimension ("S", "L", "P", "I") will end with, when
+  // known before the first frame (one-frame files): chunks sized to them
+  // (ColumnFile::expect_rows); the values read back are the same.
+  std::map<std::string, std::uint64_t> expected_rows;
 };
 
 class DatasetWriter {

@@ -288,6 +288,11 @@ Column* ColumnFile::column(const std::string& group_name, const std::string& nam
   c->rank = static_cast<int>(shape.size());
   if (c->rank == 2) c->width = fixed_dim(shape[1]);
   c->chunk_rows = chunk[0].get<hsize_t>();
+  if (shape[0].is_string())
+    if (auto it = expected_rows_.find(shape[0].get<std::string>()); it != expected_rows_.end()) {
+      constexpr hsize_t kMinChunk = 1024;
+      c->chunk_rows = std::min(c->chunk_rows, std::max<hsize_t>(kMinChunk, (it->second + kMinChunk - 1) / kMinChunk * kMinChunk));
+    }
   const hsize_t dims[2] = {0, c->width};
   const hsize_t maxdims[2] = {H5S_UNLIMITED, c->width};
   const hsize_t chunk_dims[2] = {c->chunk_rows, std::max<hsize_t>(1, c->width)};

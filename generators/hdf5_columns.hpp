@@ -112,6 +112,12 @@ class ColumnFile {
   // Creates (truncates) the file, without object time stamps.
   void create();
 
+  // Rows a first-axis dimension (the schema's "L", "P", ...) will end with,
+  // when the writer knows it before creating its columns (a one-frame trace):
+  // their chunks are then no longer than that, rounded up to 1,024 rows,
+  // instead of the schema's, so a small file does not compress mostly padding.
+  void expect_rows(const std::string& dim, hsize_t rows) { expected_rows_[dim] = rows; }
+
   const std::string& file() const { return file_; }
   const Types& types() const { return types_; }
   hid_t root() const { return fid_.get(); }
@@ -153,6 +159,7 @@ class ColumnFile {
   std::string file_;
   const nlohmann::json& schema_;
   std::map<std::string, hsize_t> fixed_dims_;
+  std::map<std::string, hsize_t> expected_rows_;
   Types types_;
   Handle fid_;
   std::unordered_map<std::string, Handle> groups_;

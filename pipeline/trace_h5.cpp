@@ -92,8 +92,15 @@ void write_trace_dataset(const std::string& path, const generators::DatasetHeade
   for (const auto& n : *in.nodes) objects.push_back(n.id);
   StagedFile staged(path, path + ".tmp.h5");
   {
-    generators::DatasetWriter writer(staged.path(), header);
-    writer.append(frame_record(snap, in, grid));
+    const generators::FrameRecord frame = frame_record(snap, in, grid);
+    generators::DatasetHeader sized = header;
+    sized.expected_rows = {{"F", 1},
+                           {"S", frame.nodes.size()},
+                           {"L", frame.links.size()},
+                           {"P", frame.paths.size()},
+                           {"I", frame.interactions.size()}};
+    generators::DatasetWriter writer(staged.path(), sized);
+    writer.append(frame);
     writer.finish(node_infos(in), objects);
   }
   staged.commit();

@@ -351,7 +351,6 @@ static void build_shape(TraceScene::Shape& s, const meshkit::Scene& scene,
       }
     if (!s.vertices.empty()) s.bounds = TraceScene::Sphere{0.5 * (lo + hi), 0.5 * norm(hi - lo)};
   }
-  build_normal_index(s);
 }
 
 namespace {
@@ -705,6 +704,9 @@ std::uint32_t TraceScene::add_vehicle_model(const std::string& name, const meshk
   s->name = "vehicle model " + name;
   s->antenna = antenna;
   build_shape(*s, model, [this](const std::string& m) { return material_index(m); }, 0);
+  // Only vehicles' faces are looked up by normal (vehicle_faces_near_normal):
+  // the city's index would cost a process a few milliseconds for nothing.
+  build_normal_index(*s);
   s->scene = rtcNewScene(d.device);
   rtcSetSceneFlags(s->scene, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST | RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
   rtcSetSceneBuildQuality(s->scene, RTC_BUILD_QUALITY_HIGH);

@@ -650,6 +650,69 @@ TEST(Dataset, ChunksCompressedInParallelReadBackExactly) {
   EXPECT_LT(size, 16384u * 3 * sizeof(float));
 }
 
+// A one-frame file whose writer is told the rows it will hold (a trace's
+// --out X.h5): chunks of those rows rounded up to 1,024, never more than the
+// schema's, and the same values as a file with the schema's chunks.
+TEST(Dataset, ExpectedRowsSizeTheChunksAndChangeNoValue) {
+  const fs::path dir = tmp_dir("expected-rows");
+  constexpr std::uint32_t kPaths = 1500;
+  Builder b;
+  FrameRecord f;
+  f.time_s = 0.5;
+  f.nodes = {b.state(0, 0.5), b.state(1, 0.5)};
+  LinkRecord l;
+  l.tx = 0;
+  l.rx = 1;
+  l.path_count = kPaths;
+  l.gain_coherent_db = l.gain_incoherent_db = -90.f;
+  f.links = {l};
+  f.cfr.assign(kK, {0.25f, 0.5f});
+  for (std::uint32_t p = 0; p < kPaths; ++p) {
+    PathRecord r;
+    r.a = {1e-5f * static_cast<float>(p % 97), -1e-6f * static_cast<float>(p)};
+    r.tau_s = 2e-7 + 1e-11 * p;
+    r.interaction_count = 1;
+    f.paths.push_back(r);
+    InteractionRecord in;
+    in.type = 1;
+    in.object = p % 6;
+    in.x = static_cast<float>(p);
+    f.interactions.push_back(in);
+  }
+  auto write = [&](const fs::path& file, bool sized) {
+    DatasetHeader h = test_header();
+    if (sized) h.expected_rows = {{"F", 1}, {"S", 2}, {"L", 1}, {"P", kPaths}, {"I", kPaths}};
+    DatasetWriter w(file, h);
+    w.append(f);
+    w.finish(test_nodes(), test_objects());
+  };
+  write(dir / "schema.h5", false);
+  write(dir / "sized.h5", true);
+  auto chunk_rows = [](const fs::path& file, const char* ds) {
+    H5 h{H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose};
+    H5 d{H5Dopen2(h.id, ds, H5P_DEFAULT), H5Dclose};
+    H5 plist{H5Dget_create_plist(d.id), H5Pclose};
+    hsize_t chunk[2] = {0, 0};
+    H5Pget_chunk(plist.id, 2, chunk);
+    return chunk[0];
+  };
+  EXPECT_EQ(chunk_rows(dir / "schema.h5", "/paths/tau_s"), 16384u);
+  EXPECT_EQ(chunk_rows(dir / "sized.h5", "/paths/tau_s"), 2048u);
+  EXPECT_EQ(chunk_rows(dir / "sized.h5", "/interactions/point"), 2048u);
+  EXPECT_EQ(chunk_rows(dir / "sized.h5", "/links/tx"), 1024u);
+  EXPECT_EQ(chunk_rows(dir / "sized.h5", "/node_states/position"), 1024u);
+  EXPECT_EQ(chunk_rows(dir / "sized.h5", "/cfr/h"), 256u);  // the schema's is smaller
+  EXPECT_TRUE(validate_dataset((dir / "sized.h5").string()).empty());
+  for (const char* ds : {"/paths/tau_s", "/links/gain_coherent_db"})
+    EXPECT_EQ(read_ds<double>(dir / "sized.h5", ds, H5T_NATIVE_DOUBLE),
+              read_ds<double>(dir / "schema.h5", ds, H5T_NATIVE_DOUBLE))
+        << ds;
+  EXPECT_EQ(read_complex(dir / "sized.h5", "/paths/a"), read_complex(dir / "schema.h5", "/paths/a"));
+  EXPECT_EQ(read_ds<float>(dir / "sized.h5", "/interactions/point", H5T_NATIVE_FLOAT),
+            read_ds<float>(dir / "schema.h5", "/interactions/point", H5T_NATIVE_FLOAT));
+  EXPECT_EQ(read_complex(dir / "sized.h5", "/cfr/h"), read_complex(dir / "schema.h5", "/cfr/h"));
+}
+
 TEST(Dataset, EmbeddedSchemaMatchesSourceFile) {
   const std::string on_disk = read_bytes(source_dir() / "schemas" / "raysweep_dataset.schema.json");
   EXPECT_EQ(dataset_schema_json(), on_disk);
