@@ -38,8 +38,20 @@ class JsonStream {
   JsonStream& end_object();
   JsonStream& begin_array();
   JsonStream& end_array();
+  // A key quoted once, for keys written many times (a trace's path fields).
+  class Key {
+   public:
+    explicit Key(std::string_view name);
+    std::string_view name() const { return name_; }
+
+   private:
+    friend class JsonStream;
+    std::string name_;
+    std::string text_;  // "name": (as key(name) writes it)
+  };
   // The next value's key; std::logic_error when it does not sort after the previous key.
   JsonStream& key(std::string_view k);
+  JsonStream& key(const Key& k);
   // A scalar, or a small value written as dump(indent) writes it at this depth.
   template <class T>
   JsonStream& value(const T& v) {
@@ -64,13 +76,13 @@ class JsonStream {
     scalar(text);
     return *this;
   }
-  template <class T>
-  JsonStream& field(std::string_view k, const T& v) {
+  template <class K, class T>
+  JsonStream& field(const K& k, const T& v) {
     return key(k).value(v);
   }
   // An array of numbers.
-  template <class Range>
-  JsonStream& number_array(std::string_view k, const Range& values) {
+  template <class K, class Range>
+  JsonStream& number_array(const K& k, const Range& values) {
     key(k).begin_array();
     for (const auto& v : values) value(v);
     return end_array();
@@ -111,6 +123,7 @@ class JsonStream {
     if (out_ && buf_.size() >= kFlushBytes) flush();
   }
   void number(double v);
+  void open_key(std::string_view k);  // the checks and the separator before a key
   void dom(const nlohmann::json& v);
   void newline(std::size_t depth);
   JsonStream& close(bool object, char bracket);

@@ -29,19 +29,28 @@ struct QuotedNames {
   }
 };
 
+// The keys of every path and interaction, quoted once.
+struct PathKeys {
+  using K = JsonStream::Key;
+  K a_im{"a_im"}, a_re{"a_re"}, doppler_hz{"doppler_hz"}, interactions{"interactions"}, material{"material"},
+      object{"object"}, point{"point"}, type{"type"}, phi_r{"phi_r"}, phi_t{"phi_t"}, tau_s{"tau_s"},
+      theta_r{"theta_r"}, theta_t{"theta_t"};
+};
+
 void write_path(JsonStream& js, const tracer::Path& path, const QuotedNames& names) {
-  js.begin_object().field("a_im", path.a.imag()).field("a_re", path.a.real()).field("doppler_hz", path.doppler_hz);
-  js.key("interactions").begin_array();
+  static const PathKeys k;
+  js.begin_object().field(k.a_im, path.a.imag()).field(k.a_re, path.a.real()).field(k.doppler_hz, path.doppler_hz);
+  js.key(k.interactions).begin_array();
   for (const auto& i : path.interactions)
     js.begin_object()
-        .key("material").json_text(names.materials.at(i.material))
-        .key("object").json_text(names.objects.at(i.object))
-        .number_array("point", i.point)
-        .field("type", tracer::interaction_name(i.type))
+        .key(k.material).json_text(names.materials.at(i.material))
+        .key(k.object).json_text(names.objects.at(i.object))
+        .number_array(k.point, i.point)
+        .field(k.type, tracer::interaction_name(i.type))
         .end_object();
   js.end_array();
-  js.field("phi_r", path.phi_r).field("phi_t", path.phi_t).field("tau_s", path.tau_s);
-  js.field("theta_r", path.theta_r).field("theta_t", path.theta_t).end_object();
+  js.field(k.phi_r, path.phi_r).field(k.phi_t, path.phi_t).field(k.tau_s, path.tau_s);
+  js.field(k.theta_r, path.theta_r).field(k.theta_t, path.theta_t).end_object();
 }
 
 void write_cfr(JsonStream& js, const tracer::PairResult& p, const tracer::OfdmGrid& grid) {

@@ -119,6 +119,30 @@ TEST(JsonStream, RefusesKeysOutOfOrderAndUnbalancedCalls) {
   EXPECT_FALSE(arr.complete());
 }
 
+// Keys quoted once (JsonStream::Key) write what the same keys as strings
+// write, escapes and UTF-8 included, and are checked for order the same way.
+TEST(JsonStream, QuotedOnceKeysWriteWhatStringKeysWrite) {
+  const json doc = {{"a\"q", 1}, {"b\\\\", {{"c\t", 2.5}, {"d", {1, 2}}}}, {"h\xc3\xa9", "x"}, {"z", nullptr}};
+  for (int indent : {1, 3}) {
+    std::ostringstream out;
+    {
+      const JsonStream::Key aq("a\"q"), b("b\\\\"), c("c\t"), d("d"), he("h\xc3\xa9"), z("z");
+      JsonStream js(out, indent);
+      js.begin_object().field(aq, 1).key(b).begin_object().field(c, 2.5);
+      js.number_array(d, std::vector<int>{1, 2}).end_object();
+      js.field(he, "x").key(z).json_text("null").end_object();
+    }
+    EXPECT_EQ(out.str(), doc.dump(indent));
+  }
+  std::ostringstream out;
+  JsonStream js(out);
+  const JsonStream::Key a("a"), b("b");
+  js.begin_object().field(b, 1);
+  EXPECT_THROW(js.key(a), std::logic_error);
+  EXPECT_THROW(js.key(b), std::logic_error);
+  EXPECT_EQ(a.name(), "a");
+}
+
 // Elements formatted apart (as `trace` formats chunks of pairs on every core)
 // and spliced in order give the bytes of writing them in place, whatever the
 // split: none, every element alone, empty fragments, at any depth.
