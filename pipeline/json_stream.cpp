@@ -1,6 +1,8 @@
 #include "pipeline/json_stream.hpp"
 
+#include <algorithm>
 #include <array>
+#include <cstring>
 #include <cmath>
 #include <stdexcept>
 
@@ -17,19 +19,32 @@ JsonStream::JsonStream(Fragment at, int indent) : indent_(indent), base_(at.dept
   if (at.depth == 0) throw std::logic_error("JsonStream: a fragment inside no array");
   levels_.resize(at.depth);
   levels_.back().spliced = true;
-  buf_.reserve(kFragmentBytes);
+  grow(kFragmentBytes);
   wrote_root_ = true;
+}
+
+// Uninitialised room (std::string would clear it): a trace's fragments are 110 kB each.
+void JsonStream::grow(std::size_t n) {
+  const std::size_t cap = std::max(2 * cap_, len_ + n + 4096);
+  std::unique_ptr<char[]> bigger(new char[cap]);
+  if (len_ > 0) std::memcpy(bigger.get(), buf_.get(), len_);
+  buf_ = std::move(bigger);
+  cap_ = cap;
 }
 
 void JsonStream::flush() {
   if (!out_) return;  // a fragment keeps its text for take()
-  out_->write(buf_.data(), static_cast<std::streamsize>(buf_.size()));
-  buf_.clear();
+  out_->write(buf_.get(), static_cast<std::streamsize>(len_));
+  len_ = 0;
 }
 
-std::string JsonStream::take() {
+JsonStream::Text JsonStream::take() {
   if (out_ || !complete()) throw std::logic_error("JsonStream: take() of an unfinished fragment");
-  return std::move(buf_);
+  Text text;
+  text.data_ = std::move(buf_);
+  text.size_ = len_;
+  cap_ = len_ = 0;
+  return text;
 }
 
 // A fragment's text begins with its first element's newline and holds the
@@ -38,7 +53,7 @@ JsonStream& JsonStream::splice(std::string_view fragment) {
   if (levels_.empty() || levels_.back().object) throw std::logic_error("JsonStream: splice outside an array");
   if (fragment.empty()) return *this;
   Level& l = levels_.back();
-  buf_ += l.empty ? '[' : ',';
+  put(l.empty ? '[' : ',');
   l.empty = false;
   put(fragment);
   return *this;
@@ -46,11 +61,16 @@ JsonStream& JsonStream::splice(std::string_view fragment) {
 
 void JsonStream::newline(std::size_t depth) {
   const std::size_t n = depth * static_cast<std::size_t>(indent_) + 1;
-  if (pad_.size() < n) {
-    pad_.assign(2 * n + 1, ' ');
+  if (pad_.size() < n || pad_.size() < kShortPad) {
+    pad_.assign(std::max(2 * n + 1, kShortPad), ' ');
     pad_[0] = '\n';
   }
-  put(std::string_view(pad_.data(), n));
+  if (n > kShortPad) return put(std::string_view(pad_.data(), n));
+  // A fixed-size copy (two stores, no call) into the room, of which n count.
+  room(kShortPad);
+  std::memcpy(buf_.get() + len_, pad_.data(), kShortPad);
+  len_ += n;
+  if (out_ && len_ >= kFlushBytes) flush();
 }
 
 namespace {
@@ -72,10 +92,12 @@ void JsonStream::quoted(std::string_view s) {
       put(nlohmann::json(std::string(s)).dump());
       return;
     }
-  buf_.push_back('"');
-  buf_.append(s.data(), s.size());
-  buf_.push_back('"');
-  if (out_ && buf_.size() >= kFlushBytes) flush();
+  room(s.size() + 2);
+  buf_[len_++] = '"';
+  std::memcpy(buf_.get() + len_, s.data(), s.size());
+  len_ += s.size();
+  buf_[len_++] = '"';
+  if (out_ && len_ >= kFlushBytes) flush();
 }
 
 void JsonStream::string(std::string_view s) {
@@ -96,8 +118,8 @@ void JsonStream::before_value() {
     l.have_key = false;
     return;
   }
-  if (!l.empty) buf_ += ',';
-  else if (!l.spliced) buf_ += '[';
+  if (!l.empty) put(',');
+  else if (!l.spliced) put('[');
   l.empty = false;
   newline(levels_.size());
 }
@@ -108,7 +130,7 @@ void JsonStream::open_key(std::string_view k) {
   if (l.have_key) throw std::logic_error("JsonStream: two keys in a row");
   if (!l.empty && !(l.last_key < k))
     throw std::logic_error("JsonStream: key \"" + std::string(k) + "\" after \"" + l.last_key + "\"");
-  buf_ += l.empty ? '{' : ',';
+  put(l.empty ? '{' : ',');
   l.empty = false;
   l.have_key = true;
   l.last_key = k;
@@ -118,7 +140,7 @@ void JsonStream::open_key(std::string_view k) {
 JsonStream& JsonStream::key(std::string_view k) {
   open_key(k);
   quoted(k);
-  buf_.append(": ", 2);
+  put(std::string_view(": ", 2));
   return *this;
 }
 
@@ -149,11 +171,11 @@ JsonStream& JsonStream::close(bool object, char bracket) {
   const bool empty = levels_.back().empty;
   levels_.pop_back();
   if (empty) {
-    buf_ += object ? '{' : '[';
+    put(object ? '{' : '[');
   } else {
     newline(levels_.size());
   }
-  buf_ += bracket;
+  put(bracket);
   if (levels_.empty()) flush();
   return *this;
 }
@@ -175,9 +197,11 @@ void JsonStream::number(double v) {
   if (!std::isfinite(v)) {
     put("null");
   } else {
-    std::array<char, 64> buf;
-    const char* end = nlohmann::detail::to_chars(buf.data(), buf.data() + buf.size(), v);
-    put(std::string_view(buf.data(), static_cast<std::size_t>(end - buf.data())));
+    constexpr std::size_t kLongest = 32;  // -d.ddddddddddddddddde-308 is 25
+    room(kLongest);
+    char* at = buf_.get() + len_;
+    len_ += static_cast<std::size_t>(nlohmann::detail::to_chars(at, at + kLongest, v) - at);
+    if (out_ && len_ >= kFlushBytes) flush();
   }
   if (levels_.empty()) flush();
 }

@@ -7,6 +7,8 @@
 #pragma once
 
 #include <charconv>
+#include <cstring>
+#include <memory>
 #include <ostream>
 #include <string>
 #include <string_view>
@@ -19,7 +21,7 @@ namespace raysweep::pipeline {
 
 class JsonStream {
  public:
-  explicit JsonStream(std::ostream& out, int indent = 1) : out_(&out), indent_(indent) { buf_.reserve(kFlushBytes); }
+  explicit JsonStream(std::ostream& out, int indent = 1) : out_(&out), indent_(indent) { grow(kFlushBytes + 4096); }
   // Elements of an array that another stream has open at `depth` (its
   // number of open objects and arrays), formatted apart, on another thread,
   // into text that the other stream's splice() takes: the bytes are those of
@@ -91,8 +93,19 @@ class JsonStream {
   bool complete() const { return levels_.size() == base_ && wrote_root_; }
   // Objects and arrays open now (a Fragment's depth for elements of this array).
   std::size_t depth() const { return levels_.size(); }
+  // A fragment's finished text (moved, not copied).
+  class Text {
+   public:
+    std::string_view view() const { return {data_.get(), size_}; }
+    operator std::string_view() const { return view(); }
+
+   private:
+    friend class JsonStream;
+    std::unique_ptr<char[]> data_;
+    std::size_t size_ = 0;
+  };
   // A fragment's text, once complete() (std::logic_error otherwise).
-  std::string take();
+  Text take();
   // Appends a fragment's text to the open array, as its next elements.
   JsonStream& splice(std::string_view fragment);
 
@@ -107,20 +120,35 @@ class JsonStream {
   static constexpr std::size_t kFlushBytes = 1 << 20;
   static constexpr std::size_t kFragmentBytes = 1 << 17;  // a trace's chunk of 16 pairs is about 110 kB
   std::ostream* out_ = nullptr;  // none for a fragment
-  std::string buf_;  // text not yet handed to out_ (one write per MiB, not one per token)
+  // Text not yet handed to out_ (one write per MiB, not one per token): its
+  // first len_ bytes; the rest is room, so that appending a token is a copy
+  // and a compare (no std::string bookkeeping per token).
+  std::unique_ptr<char[]> buf_;
+  std::size_t cap_ = 0, len_ = 0;
   int indent_;
   std::vector<Level> levels_;
   std::size_t base_ = 0;  // levels a fragment starts inside (and cannot close)
   bool wrote_root_ = false;
   std::string pad_;  // a newline and spaces enough for the deepest level so far
+  static constexpr std::size_t kShortPad = 16;  // newlines this long or shorter are copied whole
 
   void before_value();
   void scalar(std::string_view text);
   void string(std::string_view s);
   void quoted(std::string_view s);  // s as dump() writes a string
+  void room(std::size_t n) {
+    if (cap_ - len_ < n) grow(n);
+  }
+  void grow(std::size_t n);
   void put(std::string_view text) {
-    buf_.append(text);
-    if (out_ && buf_.size() >= kFlushBytes) flush();
+    room(text.size());
+    std::memcpy(buf_.get() + len_, text.data(), text.size());
+    len_ += text.size();
+    if (out_ && len_ >= kFlushBytes) flush();
+  }
+  void put(char c) {
+    room(1);
+    buf_[len_++] = c;
   }
   void number(double v);
   void open_key(std::string_view k);  // the checks and the separator before a key

@@ -106,7 +106,7 @@ void write_pairs(JsonStream& js, const TraceDocument& doc) {
                                             if (next == chunks) fc.stop();
                                             return next++;
                                           }) &
-          tbb::make_filter<std::size_t, std::string>(tbb::filter_mode::parallel,
+          tbb::make_filter<std::size_t, JsonStream::Text>(tbb::filter_mode::parallel,
                                                      [&](std::size_t c) {
                                                        JsonStream part(at, 1);
                                                        const std::size_t end = std::min(pairs.size(), (c + 1) * kChunk);
@@ -114,8 +114,8 @@ void write_pairs(JsonStream& js, const TraceDocument& doc) {
                                                          write_pair(part, pairs[i], doc, names);
                                                        return part.take();
                                                      }) &
-          tbb::make_filter<std::string, void>(tbb::filter_mode::serial_in_order,
-                                              [&](const std::string& text) { js.splice(text); }));
+          tbb::make_filter<JsonStream::Text, void>(tbb::filter_mode::serial_in_order,
+                                              [&](const JsonStream::Text& text) { js.splice(text); }));
   js.end_array();
 }
 
