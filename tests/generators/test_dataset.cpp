@@ -565,6 +565,27 @@ TEST(Dataset, DeterministicBytes) {
   EXPECT_TRUE(a == b) << "files differ";
 }
 
+namespace {
+
+// One frame of two nodes and their one link with `paths` paths (the caller
+// adds them), every subcarrier's response `h`.
+FrameRecord one_link_frame(double time_s, std::uint32_t paths, float gain_db, std::complex<float> h) {
+  Builder b;
+  FrameRecord f;
+  f.time_s = time_s;
+  f.nodes = {b.state(0, time_s), b.state(1, time_s)};
+  LinkRecord l;
+  l.tx = 0;
+  l.rx = 1;
+  l.path_count = paths;
+  l.gain_coherent_db = l.gain_incoherent_db = gain_db;
+  f.links = {l};
+  f.cfr.assign(kK, h);
+  return f;
+}
+
+}  // namespace
+
 // A frame large enough that the writer compresses whole chunks itself, in
 // parallel (shuffle + deflate handed to H5Dwrite_chunk): HDF5 reads every value
 // back through its own filters, the chunks say both filters ran, and the bytes
@@ -572,17 +593,7 @@ TEST(Dataset, DeterministicBytes) {
 TEST(Dataset, ChunksCompressedInParallelReadBackExactly) {
   const fs::path dir = tmp_dir("parallel-chunks");
   constexpr std::uint32_t kPaths = 70000, kPer = 3;  // 210,000 interactions: 2.5 MB of points
-  FrameRecord f;
-  f.time_s = 1.0;
-  Builder b;
-  f.nodes = {b.state(0, 1.0), b.state(1, 1.0)};
-  LinkRecord l;
-  l.tx = 0;
-  l.rx = 1;
-  l.path_count = kPaths;
-  l.gain_coherent_db = l.gain_incoherent_db = -80.f;
-  f.links = {l};
-  f.cfr.assign(kK, {0.5f, -0.25f});
+  FrameRecord f = one_link_frame(1.0, kPaths, -80.f, {0.5f, -0.25f});
   for (std::uint32_t p = 0; p < kPaths; ++p) {
     PathRecord r;
     r.a = {std::sin(0.001f * static_cast<float>(p)), 1e-6f * static_cast<float>(p % 977)};
@@ -656,17 +667,7 @@ TEST(Dataset, ChunksCompressedInParallelReadBackExactly) {
 TEST(Dataset, ExpectedRowsSizeTheChunksAndChangeNoValue) {
   const fs::path dir = tmp_dir("expected-rows");
   constexpr std::uint32_t kPaths = 1500;
-  Builder b;
-  FrameRecord f;
-  f.time_s = 0.5;
-  f.nodes = {b.state(0, 0.5), b.state(1, 0.5)};
-  LinkRecord l;
-  l.tx = 0;
-  l.rx = 1;
-  l.path_count = kPaths;
-  l.gain_coherent_db = l.gain_incoherent_db = -90.f;
-  f.links = {l};
-  f.cfr.assign(kK, {0.25f, 0.5f});
+  FrameRecord f = one_link_frame(0.5, kPaths, -90.f, {0.25f, 0.5f});
   for (std::uint32_t p = 0; p < kPaths; ++p) {
     PathRecord r;
     r.a = {1e-5f * static_cast<float>(p % 97), -1e-6f * static_cast<float>(p)};
