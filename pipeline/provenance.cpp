@@ -1,5 +1,6 @@
 #include "pipeline/provenance.hpp"
 
+#include <openssl/crypto.h>
 #include <openssl/evp.h>
 
 #include <cstdio>
@@ -12,6 +13,17 @@
 namespace raysweep::pipeline {
 
 namespace {
+
+// SHA-256 needs none of the system's OpenSSL configuration (openssl.cnf:
+// providers, FIPS modes): not reading it saves every command about a
+// millisecond, and hashes cannot depend on it.
+const EVP_MD* sha256() {
+  static const EVP_MD* md = [] {
+    OPENSSL_init_crypto(OPENSSL_INIT_NO_LOAD_CONFIG, nullptr);
+    return EVP_sha256();
+  }();
+  return md;
+}
 
 std::string hex(const unsigned char* digest, unsigned int len) {
   static const char* digits = "0123456789abcdef";
@@ -29,7 +41,7 @@ std::string sha256_file(const std::string& path) {
   std::unique_ptr<FILE, int (*)(FILE*)> f(std::fopen(path.c_str(), "rb"), std::fclose);
   if (!f) throw std::runtime_error(path + ": cannot open for hashing");
   std::unique_ptr<EVP_MD_CTX, void (*)(EVP_MD_CTX*)> ctx(EVP_MD_CTX_new(), EVP_MD_CTX_free);
-  EVP_DigestInit_ex(ctx.get(), EVP_sha256(), nullptr);
+  EVP_DigestInit_ex(ctx.get(), sha256(), nullptr);
   std::vector<unsigned char> buf(1 << 16);
   std::size_t n;
   while ((n = std::fread(buf.data(), 1, buf.size(), f.get())) > 0) EVP_DigestUpdate(ctx.get(), buf.data(), n);
@@ -42,7 +54,7 @@ std::string sha256_file(const std::string& path) {
 std::string sha256_text(const std::string& text) {
   unsigned char digest[EVP_MAX_MD_SIZE];
   unsigned int len = 0;
-  EVP_Digest(text.data(), text.size(), digest, &len, EVP_sha256(), nullptr);
+  EVP_Digest(text.data(), text.size(), digest, &len, sha256(), nullptr);
   return hex(digest, len);
 }
 
