@@ -291,7 +291,8 @@ Column* ColumnFile::column(const std::string& group_name, const std::string& nam
   if (shape[0].is_string())
     if (auto it = expected_rows_.find(shape[0].get<std::string>()); it != expected_rows_.end()) {
       constexpr hsize_t kMinChunk = 1024;
-      c->chunk_rows = std::min(c->chunk_rows, std::max<hsize_t>(kMinChunk, (it->second + kMinChunk - 1) / kMinChunk * kMinChunk));
+      const hsize_t rounded = (it->second + kMinChunk - 1) / kMinChunk * kMinChunk;
+      c->chunk_rows = std::min(c->chunk_rows, std::max(kMinChunk, rounded));
     }
   const hsize_t dims[2] = {0, c->width};
   const hsize_t maxdims[2] = {H5S_UNLIMITED, c->width};
