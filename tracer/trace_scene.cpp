@@ -114,7 +114,7 @@ struct TraceScene::Shape {
   std::vector<double> edge_offset;
   std::vector<Sphere> face_sphere;
   Sphere bounds;  // of all vertices (shape frame)
-  NormalIndex normals;
+  NormalIndex normals;  // vehicle models only (empty for the city: nothing looks its faces up by normal)
   Vec3 antenna{0, 0, 0};
   std::string content_key;  // vehicle models: geometry, materials, Embree version (precompute.hpp)
   std::vector<std::uint32_t> seen_from_mount;  // vehicle models: faces the antenna mount sees
