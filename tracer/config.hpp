@@ -57,6 +57,15 @@ struct TracerConfig {
   // Reception sphere radius = factor * angular ray spacing * unfolded length.
   // Candidates are refined exactly, so a generous sphere only costs time.
   double reception_radius_factor = 1.0;
+  // Vehicle bundles (tracer/shoot.cpp, docs/tracer.md): per source, rays
+  // aimed at each other vehicle that the lattice covers with fewer than
+  // vehicle_bundle_rays, and through each static face whose beam the
+  // lattice showed reaching one. Chains of two vehicles, or through one's
+  // cabin onto another, need a far vehicle hit densely, which 6144 rays
+  // over the sphere do not give.
+  bool vehicle_bundles = true;
+  int vehicle_bundle_rays = 32;
+  bool vehicle_bundles_via_faces = true;
   CandidateSearch candidates = CandidateSearch::image;
   // Slabs a path may cross (a vehicle's two windows, a building's two
   // walls); an exact path crossing more is dropped and counted in its pair

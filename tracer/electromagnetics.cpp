@@ -14,6 +14,7 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (t.max_depth < 0 || t.max_depth > kMaxDepth)
     bad("tracer.max_depth must be within 0.." + std::to_string(kMaxDepth));
   if (t.rays_per_source < 1) bad("tracer.rays_per_source must be at least 1");
+  if (t.vehicle_bundle_rays < 1) bad("tracer.vehicle_bundle_rays must be at least 1");
   if (!(t.reception_radius_factor > 0)) bad("tracer.reception_radius_factor must be positive");
   if (t.max_transmissions < 0) bad("tracer.max_transmissions must be >= 0");
   if (!(t.sbr_transmission_loss_db >= 0)) bad("tracer.sbr_transmission_loss_db must be >= 0");

@@ -85,6 +85,15 @@ struct RayState {
   Vec3 v_prev;
 };
 
+// A bundle ray's aim (shoot_vehicle_bundles): straight at a vehicle, or at
+// one through `face` (a static face, or another vehicle's). `spacing` is the
+// bundle's angular spacing at the source.
+struct BundleTarget {
+  FaceRef face{};
+  bool via_face = false;
+  double spacing = 0;
+};
+
 // What one hit gives every branch leaving it: the face's plane and
 // material, the mirror direction and, with diffuse on, the ray tube's
 // slab coefficients, the field a smooth surface would reflect and dL/dt.
@@ -110,7 +119,8 @@ class Shooter {
   Shooter(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& cfg, const std::vector<Node>& nodes,
           std::uint32_t src, const std::vector<Vec3>& lattice, std::vector<CandidateKey>& out, std::uint64_t& rays,
           const DiffuseTargets* diffuse, DiffuseBins* diffuse_out, const ImageFaces* beam_faces,
-          std::vector<BeamVehicle>* beams, std::vector<BeamPair>* beam_pairs)
+          std::vector<BeamVehicle>* beams, std::vector<BeamPair>* beam_pairs, std::size_t spacing_rays = 0,
+          const std::vector<BundleTarget>* targets = nullptr, std::vector<BeamVehicle>* bundle_marks = nullptr)
       : scene_(scene),
         em_(em),
         cfg_(cfg),
@@ -124,7 +134,10 @@ class Shooter {
         beam_faces_(beam_faces),
         beams_(beams),
         beam_pairs_(beam_pairs),
-        spacing_(std::sqrt(4 * kPi / static_cast<double>(lattice.size())) * cfg.reception_radius_factor),
+        targets_(targets),
+        bundle_marks_(bundle_marks),
+        spacing_(std::sqrt(4 * kPi / static_cast<double>(spacing_rays ? spacing_rays : lattice.size())) *
+                 cfg.reception_radius_factor),
         scatter_(diffuse && (!diffuse->rx.empty() || !diffuse->rev.empty())),
         d_omega_(4 * kPi / static_cast<double>(lattice.size())),
         lambda_(em.wavelength()),
@@ -187,12 +200,35 @@ class Shooter {
                                         std::numeric_limits<double>::infinity(), hit,
                                         st.has_leaving ? &st.leaving : nullptr);
     ++rays_;
+    if (targets_ && !on_target(st, got, hit)) return;
     const double tseg = got ? hit.t : std::numeric_limits<double>::infinity();
     if (st.n > 0) propose(st, tseg);
     note_beams(st, std::min(tseg, 1e30));
+    if (bundle_marks_) note_bundle_marks(st, std::min(tseg, 1e30));
     if (!got) return;
     ++hit_no_;
     at_hit(st, hit);
+  }
+
+  bool is_ground(const FaceRef& f) const {
+    return f.instance == 0 && std::binary_search(beam_faces_->ground.begin(), beam_faces_->ground.end(), f.face);
+  }
+
+  // Whether a bundle ray's branch is still the bundle's business: its first
+  // hit (after the face it is aimed through) another vehicle or the ground.
+  // What meets a building first is the lattice's (far vehicles mostly stand
+  // behind buildings), and so is the antenna's own roof below it; a vehicle
+  // in front of the target, and the ground that the cap takes in below it,
+  // carry chains of their own.
+  bool on_target(const RayState& st, bool got, const Hit& hit) const {
+    const BundleTarget& t = (*targets_)[r_];
+    const int k = st.n + st.transmissions;
+    const bool own = got && static_cast<int>(hit.face.instance) == nodes_[src_].vehicle + 1;
+    const bool vehicle_or_ground = got && !own && (hit.face.instance != 0 || is_ground(hit.face));
+    if (!t.via_face) return k > 0 || vehicle_or_ground;
+    if (k == 0) return got && hit.face == t.face;
+    if (k == 1) return st.n == 1 && vehicle_or_ground;
+    return true;
   }
 
   // The nodes this segment passes within the reception sphere propose the
@@ -234,11 +270,29 @@ class Shooter {
   // `centre`, widened by twice the ray spacing at that distance (what it may
   // miss between rays: a vehicle, a small face).
   bool passes(const RayState& st, double seg_end, const Vec3& centre, double radius) const {
+    return passes(st, seg_end, centre, radius, spacing_);
+  }
+  bool passes(const RayState& st, double seg_end, const Vec3& centre, double radius, double spacing) const {
     const Vec3 c = centre - st.o;
     const double t = std::clamp(dot(c, st.d), 0.0, seg_end);
     const Vec3 q = c - t * st.d;
-    const double reach = radius + 2 * spacing_ * (st.len + t);
+    const double reach = radius + 2 * spacing * (st.len + t);
     return dot(q, q) <= reach * reach;
+  }
+
+  // A bundle ray reflected once, on a vehicle's face: the other vehicles
+  // it passes (within its bundle's spacing) are in that face's beam, and
+  // get a bundle of their own through the face (a car's echo off a car).
+  void note_bundle_marks(const RayState& st, double seg_end) {
+    if (st.n != 1 || chain_[st.last].face.instance == 0) return;
+    const FaceRef& f = chain_[st.last].face;
+    const std::uint32_t from = f.instance - 1, face = beam_faces_->vehicle_begin[from] + f.face;
+    const auto& spheres = beam_faces_->vehicle_spheres;
+    const double sp = (*targets_)[r_].spacing;
+    for (std::uint32_t v = 0; v < spheres.size(); ++v)
+      if (v != from && static_cast<int>(v) != nodes_[src_].vehicle &&
+          passes(st, seg_end, spheres[v].centre, spheres[v].radius, sp))
+        bundle_marks_->push_back({face, v});
   }
 
   void note_beams(const RayState& st, double seg_end) {
@@ -326,6 +380,8 @@ class Shooter {
   const ImageFaces* beam_faces_;
   std::vector<BeamVehicle>* beams_;
   std::vector<BeamPair>* beam_pairs_;
+  const std::vector<BundleTarget>* targets_;
+  std::vector<BeamVehicle>* bundle_marks_;
   const double spacing_;
   const bool scatter_;
   const double d_omega_, lambda_, rx_peak_gain_;
@@ -725,12 +781,13 @@ Grouped group_by_pair(const std::vector<std::vector<std::size_t>>& slots, std::s
 // Merged in task order, so the sums are the same for any thread count; the
 // slot lookups run per task and the merging per pair, both in parallel (a
 // serial merge held one core idle for 20-30 ms).
-void merge_tasks(const SnapshotPlan& plan, std::vector<TaskOut>& tasks, std::size_t chunks, ShootPass& pass) {
+void merge_tasks(const SnapshotPlan& plan, std::vector<TaskOut>& tasks, const std::vector<std::uint32_t>& task_src,
+                 ShootPass& pass) {
   // The image search enumerated these sequences completely already.
   const ImageFaces* image_faces = plan.image_search ? &plan.faces() : nullptr;
   std::vector<std::vector<std::size_t>> found_slot(tasks.size()), bin_slot(tasks.size());
   tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
-    slot_finds(plan, image_faces, plan.sources[task / chunks], tasks[task], found_slot[task], bin_slot[task]);
+    slot_finds(plan, image_faces, task_src[task], tasks[task], found_slot[task], bin_slot[task]);
   });
   const Grouped found_by_pair = group_by_pair(found_slot, plan.pairs.size());
   const Grouped bins_by_pair = group_by_pair(bin_slot, plan.pairs.size());
@@ -748,15 +805,170 @@ void merge_tasks(const SnapshotPlan& plan, std::vector<TaskOut>& tasks, std::siz
   for (std::size_t task = 0; task < tasks.size(); ++task) {
     pass.rays += tasks[task].rays;
     if (!pass.beams.empty()) {
-      auto& b = pass.beams[plan.sources[task / chunks]];
+      auto& b = pass.beams[task_src[task]];
       b.insert(b.end(), tasks[task].beams.begin(), tasks[task].beams.end());
     }
     if (!pass.beam_pairs.empty()) {
-      auto& b = pass.beam_pairs[plan.sources[task / chunks]];
+      auto& b = pass.beam_pairs[task_src[task]];
       b.insert(b.end(), tasks[task].beam_pairs.begin(), tasks[task].beam_pairs.end());
     }
   }
   tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t t) { tasks[t] = TaskOut{}; });
+}
+
+// Directions from `from` spread evenly in solid angle over the cap the
+// sphere subtends (a Fibonacci spiral), `n` of them; none from inside it.
+// Returns the cap's solid angle over 2 pi (1 - cos of its half angle).
+double cap_directions(const Vec3& from, const TraceScene::Sphere& s, int n, std::vector<Vec3>& out) {
+  const Vec3 c = s.centre - from;
+  const double d = norm(c);
+  if (!(d > s.radius)) return 0;
+  const Vec3 w = (1 / d) * c, u = any_perpendicular(w), v = cross(w, u);
+  const double sin_half = s.radius / d, one_minus_cos = sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
+  const double golden = kPi * (3 - std::sqrt(5.0));
+  for (int k = 0; k < n; ++k) {
+    const double z = 1 - one_minus_cos * (k + 0.5) / n, r = std::sqrt(std::fmax(0.0, 1 - z * z));
+    out.push_back(std::cos(golden * k) * r * u + std::sin(golden * k) * r * v + z * w);
+  }
+  return one_minus_cos;
+}
+
+double cap_one_minus_cos(const Vec3& from, const TraceScene::Sphere& s) {
+  const double d = norm(s.centre - from);
+  if (!(d > s.radius)) return 2;
+  const double sin_half = s.radius / d;
+  return sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
+}
+
+// The angular spacing of n rays over a cap (solid angle 2 pi (1 - cos)).
+double bundle_spacing(double one_minus_cos, int n) { return std::sqrt(2 * kPi * one_minus_cos / n); }
+
+// Lattice rays a cap of this size receives (solid angle 2 pi (1 - cos) over
+// 4 pi / rays each).
+double lattice_rays_on_cap(double one_minus_cos, int rays) { return one_minus_cos * rays / 2; }
+
+// A bundle from source s through face f (ImageFaces' index) at vehicle v:
+// from s's image in f, n rays over the smaller of the caps of f's and v's
+// spheres, kept where they cross f's plane within f's sphere and pass
+// within v's; each cast from s at its crossing point. With `sparse_only`,
+// none when the lattice already gives v's cap from the image n rays.
+void bundle_through_face(const ImageFaces& faces, const Vec3& s, std::uint32_t f, std::uint32_t v, int n, int rays,
+                         bool sparse_only, std::vector<Vec3>& dirs, std::vector<BundleTarget>& targets) {
+  const Plane& pl = faces.planes[f];
+  const Vec3 img = s - 2 * (dot(pl.normal, s) - pl.offset) * pl.normal;
+  const auto& fs = faces.spheres[f];
+  const auto& vs = faces.vehicle_spheres[v];
+  const double cap_v = cap_one_minus_cos(img, vs);
+  if (sparse_only && lattice_rays_on_cap(cap_v, rays) >= n) return;
+  const TraceScene::Sphere face_sphere{fs.centre, fs.radius + faces.tol[f]};
+  const double cap_f = cap_one_minus_cos(img, face_sphere);
+  const bool aim_at_face = cap_f < cap_v;
+  std::vector<Vec3> aimed;
+  const double cap = cap_directions(img, aim_at_face ? face_sphere : vs, n, aimed);
+  const BundleTarget target{faces.refs[f], true, bundle_spacing(cap, n)};
+  for (const Vec3& e : aimed) {
+    const double den = dot(pl.normal, e);
+    if (den == 0) continue;
+    const double t = (pl.offset - dot(pl.normal, img)) / den;
+    const Vec3 p = img + t * e;
+    if (!(t > 0) || dot(p - face_sphere.centre, p - face_sphere.centre) > face_sphere.radius * face_sphere.radius) continue;
+    const Vec3 c = vs.centre - img;
+    const double along = dot(c, e);
+    if (along < t || dot(c, c) - along * along > vs.radius * vs.radius) continue;
+    dirs.push_back(normalize(p - s));
+    targets.push_back(target);
+  }
+}
+
+// The first bundles of one source (TracerConfig::vehicle_bundles): at every
+// other vehicle the lattice covers with fewer than vehicle_bundle_rays rays,
+// and through every static face whose beam the lattice showed reaching one.
+void first_bundles(const SnapshotPlan& plan, const ImageFaces& faces, std::uint32_t src,
+                   std::vector<BeamVehicle> combos, std::vector<Vec3>& dirs, std::vector<BundleTarget>& targets) {
+  const int n = plan.cfg.vehicle_bundle_rays, rays = plan.cfg.rays_per_source;
+  const Vec3 s = plan.nodes[src].position;
+  const auto own = static_cast<std::uint32_t>(plan.nodes[src].vehicle);
+  for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) {
+    if (v == own) continue;
+    const std::size_t at = dirs.size();
+    const double cap = cap_directions(s, faces.vehicle_spheres[v], n, dirs);
+    if (lattice_rays_on_cap(cap, rays) >= n) dirs.resize(at);
+    targets.resize(dirs.size(), BundleTarget{{v + 1, 0}, false, bundle_spacing(cap, n)});
+  }
+  if (!plan.cfg.vehicle_bundles_via_faces) return;
+  std::sort(combos.begin(), combos.end());
+  combos.erase(std::unique(combos.begin(), combos.end()), combos.end());
+  for (const BeamVehicle& c : combos)
+    if (c.vehicle != own) bundle_through_face(faces, s, c.face, c.vehicle, n, rays, true, dirs, targets);
+}
+
+// One round of bundles: each source's rays in tasks of kShootChunk, their
+// finds merged into the pass; with `marks`, the (vehicle face, vehicle)
+// beams the rays show, per source.
+void shoot_bundles(const SnapshotPlan& plan, const ImageFaces& faces, const std::vector<std::vector<Vec3>>& dirs,
+                   const std::vector<std::vector<BundleTarget>>& targets, ShootPass& pass,
+                   std::vector<std::vector<BeamVehicle>>* marks) {
+  struct Job {
+    std::uint32_t src;
+    std::size_t begin, end;
+  };
+  std::vector<Job> jobs;
+  for (const auto src : plan.sources)
+    for (std::size_t b = 0; b < dirs[src].size(); b += kShootChunk)
+      jobs.push_back({src, b, std::min(dirs[src].size(), b + kShootChunk)});
+  std::vector<TaskOut> tasks(jobs.size());
+  std::vector<std::uint32_t> task_src(jobs.size());
+  tbb::parallel_for(std::size_t{0}, jobs.size(), [&](std::size_t t) {
+    const Job& j = jobs[t];
+    task_src[t] = j.src;
+    TracerConfig local = plan.cfg;
+    local.specular = true;
+    Shooter shooter(plan.scene, plan.em, local, plan.nodes, j.src, dirs[j.src], tasks[t].found, tasks[t].rays, nullptr,
+                    nullptr, &faces, nullptr, nullptr, static_cast<std::size_t>(plan.cfg.rays_per_source),
+                    &targets[j.src], marks ? &tasks[t].beams : nullptr);
+    for (std::size_t r = j.begin; r < j.end; ++r) shooter.shoot(r);
+    shooter.finish();
+  });
+  if (marks) {
+    marks->assign(plan.n, {});
+    for (std::size_t t = 0; t < tasks.size(); ++t) {
+      auto& m = (*marks)[task_src[t]];
+      m.insert(m.end(), tasks[t].beams.begin(), tasks[t].beams.end());
+      tasks[t].beams.clear();
+    }
+  }
+  merge_tasks(plan, tasks, task_src, pass);
+}
+
+// Rays aimed at the vehicles the lattice covers sparsely (two vehicles in a
+// chain, a car's cabin and then another car, a wall, a car and a car): their
+// face sequences join the lattice's candidates; the reception spheres keep
+// the lattice's spacing (a generous sphere only costs exact checks). Then,
+// through every vehicle face those rays reflect on towards another vehicle,
+// a bundle at that vehicle. No diffuse gathering: the diffuse estimator
+// weights its rays by the lattice's solid angle.
+void shoot_vehicle_bundles(const SnapshotPlan& plan, const ImageFaces& faces, ShootPass& pass) {
+  std::vector<std::vector<Vec3>> dirs(plan.n);
+  std::vector<std::vector<BundleTarget>> targets(plan.n);
+  tbb::parallel_for(std::size_t{0}, plan.sources.size(), [&](std::size_t k) {
+    const auto src = plan.sources[k];
+    first_bundles(plan, faces, src, pass.beams.empty() ? std::vector<BeamVehicle>{} : pass.beams[src], dirs[src],
+                  targets[src]);
+  });
+  std::vector<std::vector<BeamVehicle>> marks;
+  shoot_bundles(plan, faces, dirs, targets, pass, &marks);
+  tbb::parallel_for(std::size_t{0}, plan.sources.size(), [&](std::size_t k) {
+    const auto src = plan.sources[k];
+    auto& m = marks[src];
+    std::sort(m.begin(), m.end());
+    m.erase(std::unique(m.begin(), m.end()), m.end());
+    dirs[src].clear();
+    targets[src].clear();
+    for (const BeamVehicle& c : m)
+      bundle_through_face(faces, plan.nodes[src].position, c.face, c.vehicle, plan.cfg.vehicle_bundle_rays,
+                          plan.cfg.rays_per_source, false, dirs[src], targets[src]);
+  });
+  shoot_bundles(plan, faces, dirs, targets, pass, nullptr);
 }
 
 }  // namespace
@@ -798,7 +1010,10 @@ ShootPass run_shoot_pass(const SnapshotPlan& plan) {
                triple_search ? &out.beam_pairs : nullptr);
     if (!plan.sbr_specular) out.found.clear();
   });
-  merge_tasks(plan, tasks, chunks, pass);
+  std::vector<std::uint32_t> task_src(tasks.size());
+  for (std::size_t t = 0; t < tasks.size(); ++t) task_src[t] = plan.sources[t / chunks];
+  merge_tasks(plan, tasks, task_src, pass);
+  if (faces && plan.sbr_specular && cfg.vehicle_bundles) shoot_vehicle_bundles(plan, *faces, pass);
   pass.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return pass;
 }

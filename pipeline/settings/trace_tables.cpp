@@ -52,6 +52,16 @@ const Table<TraceSettings>& tracer_table() {
     t.toggle("refraction");
     t.key("rays_per_source", integer<int>(at_least(1)), FIELD(tracer.rays_per_source), "",
           "shoot-and-bounce rays per antenna (orders the image search does not cover)");
+    t.key("vehicle_bundles", boolean(), FIELD(tracer.vehicle_bundles), "",
+          "shoot-and-bounce rays aimed at each vehicle the lattice covers sparsely, from each antenna and through "
+          "the static faces whose beams reach it (chains of two vehicles, a cabin then another vehicle)");
+    t.toggle("vehicle bundles", image_search(2));
+    t.key("vehicle_bundle_rays", integer<int>(at_least(1)), FIELD(tracer.vehicle_bundle_rays), "",
+          "vehicle bundles: rays per vehicle and source (or face), when the lattice gives the vehicle fewer");
+    t.key("vehicle_bundles_via_faces", boolean(), FIELD(tracer.vehicle_bundles_via_faces), "",
+          "vehicle bundles also through the static faces whose beams reach a vehicle (a wall, then two vehicles)");
+    t.toggle("vehicle bundles via faces",
+             [](const TraceSettings& c) { return c.tracer.vehicle_bundles && image_search(2)(c); });
     t.key("reception_radius_factor", number(above(0)), FIELD(tracer.reception_radius_factor), "",
           "reception sphere radius over the rays' angular spacing times the unfolded length");
     t.key("candidates",

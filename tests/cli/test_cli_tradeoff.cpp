@@ -180,15 +180,16 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
   // Reference + rays {256, 1024} x depths {1, 2} + diffuse, diffraction,
   // the vehicles' knife edges (on the direct path, on reflected paths), the
   // vehicles' UTD edges and refraction toggled + all mechanisms + the
-  // multi-bounce table off + the sampled search alone + the coarser LOD +
-  // static geometry at 2 m.
-  ASSERT_EQ(rows.size(), 16u);
+  // multi-bounce table off + the vehicle bundles off (all, and through
+  // faces) + the sampled search alone + the coarser LOD + static geometry at 2 m.
+  ASSERT_EQ(rows.size(), 18u);
   std::map<std::string, const std::map<std::string, std::string>*> by_label;
   for (const auto& row : rows) by_label[row.at("label")] = &row;
   for (const char* label : {"reference", "r256 d1", "r256 d2", "r1024 d1", "r1024 d2", "r1024 d2 +diffuse",
                             "r1024 d2 +diffraction", "r1024 d2 -vehicle knife edges", "r1024 d2 +reflected knife edges",
                             "r1024 d2 +vehicle edges", "r1024 d2 -refraction",
-                            "r1024 d2 all mechanisms", "r1024 d2 -vehicle multi-bounce",
+                            "r1024 d2 all mechanisms", "r1024 d2 -vehicle multi-bounce", "r1024 d2 -vehicle bundles",
+                            "r1024 d2 -vehicle bundles via faces",
                             "r1024 d2 sbr search", "r1024 d2 lod1",
                             "r1024 d2 static 2m"})
     EXPECT_TRUE(by_label.count(label)) << label;
