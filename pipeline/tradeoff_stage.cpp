@@ -336,9 +336,9 @@ TradeoffSetting reference_setting(const tracer::TracerConfig& base, const GridAx
   ref.tracer.max_depth = axes.ref_depth;
   ref.tracer.los = ref.tracer.specular = ref.tracer.refraction = ref.tracer.diffuse = ref.tracer.diffraction = true;
   ref.tracer.vehicle_diffraction = true;
-  // Vehicles as densely sampled as the lattice is: 4x the base's bundles.
+  // Vehicles sampled 4x as densely as the default's bundles (or more).
   ref.tracer.vehicle_bundles = ref.tracer.vehicle_bundles_via_faces = true;
-  ref.tracer.vehicle_bundle_rays = 4 * base.vehicle_bundle_rays;
+  ref.tracer.vehicle_bundle_rays = std::max(128, 4 * base.vehicle_bundle_rays);
   ref.tracer.path_threshold_db = 0;  // keep every path
   // Diffuse tiles (when the base integrates by tiles): converged.
   ref.tracer.diffuse_tile_m = std::min(base.diffuse_tile_m, 0.25);

@@ -64,7 +64,7 @@ struct TracerConfig {
   // cabin onto another, need a far vehicle hit densely, which 6144 rays
   // over the sphere do not give.
   bool vehicle_bundles = true;
-  int vehicle_bundle_rays = 32;
+  int vehicle_bundle_rays = 16;
   bool vehicle_bundles_via_faces = true;
   CandidateSearch candidates = CandidateSearch::image;
   // Slabs a path may cross (a vehicle's two windows, a building's two

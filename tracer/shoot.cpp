@@ -214,6 +214,14 @@ class Shooter {
     return f.instance == 0 && std::binary_search(beam_faces_->ground.begin(), beam_faces_->ground.end(), f.face);
   }
 
+  // The reception spheres' angular spacing: the lattice's, or for a bundle
+  // ray twice its bundle's own (not more than the lattice's). The lattice's
+  // spheres around a bundle's dense rays proposed a third more candidates on
+  // the ring road for no path.
+  double reception_spacing() const {
+    return targets_ ? std::min(spacing_, 2 * (*targets_)[r_].spacing * cfg_.reception_radius_factor) : spacing_;
+  }
+
   // Whether a bundle ray's branch is still the bundle's business: its first
   // hit (after the face it is aimed through) another vehicle or the ground.
   // What meets a building first is the lattice's (far vehicles mostly stand
@@ -242,7 +250,7 @@ class Shooter {
     const float ox = static_cast<float>(st.o[0] - ref_[0]), oy = static_cast<float>(st.o[1] - ref_[1]),
                 oz = static_cast<float>(st.o[2] - ref_[2]);
     const float dx = static_cast<float>(st.d[0]), dy = static_cast<float>(st.d[1]), dz = static_cast<float>(st.d[2]);
-    const float len = static_cast<float>(st.len), sp = static_cast<float>(spacing_);
+    const float len = static_cast<float>(st.len), sp = static_cast<float>(reception_spacing());
     const float tmax = static_cast<float>(std::min(tseg, 1e30));
     const float* nx = nx_.data();
     const float* ny = ny_.data();
