@@ -217,6 +217,8 @@ def main():
                     help="store paths and attribute each rule's missing power to kinds of paths")
     ap.add_argument("--scaling", default="", help="vehicle counts for the per-frame cost curve (e.g. 5,10,20)")
     ap.add_argument("--scaling-frames", type=int, default=20)
+    ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                    help="a setting for every sweep of every case (repeatable), e.g. tracer.vehicle_bundles=false")
     args = ap.parse_args()
     rs = os.path.join(args.build, "raysweep")
     os.makedirs(args.out, exist_ok=True)
@@ -226,11 +228,11 @@ def main():
     for k, case in enumerate(args.cases.split(",")):
         if case == "demo":
             end = 60 + args.demo_frames / 10 - 0.05
-            rows += compare_case(rs, "demo", DEMO, os.path.join(args.out, "demo"), [f"sweep.end_s={end}"],
+            rows += compare_case(rs, "demo", DEMO, os.path.join(args.out, "demo"), [f"sweep.end_s={end}"] + args.set,
                                  k % 2 == 0, variants, args.explain)
         elif case == "ring" and have_ring:
             end = 70 + args.ring_frames / 10 - 0.05
-            rows += compare_case(rs, "ring", RING, os.path.join(args.out, "ring"), [f"sweep.end_s={end}"],
+            rows += compare_case(rs, "ring", RING, os.path.join(args.out, "ring"), [f"sweep.end_s={end}"] + args.set,
                                  k % 2 == 0, variants, args.explain)
         elif case == "ring":
             print("ring: skipped (../shared/data absent)")
@@ -246,7 +248,7 @@ def main():
             out = os.path.join(args.out, f"scaling_{name}_{'120' if name == 'ring' and n > 60 else 'base'}")
             row = {"case": name, "vehicles": n}
             for on in (False, True):
-                r = sweep(rs, city, out, sets + [f"sweep.max_vehicles={n}",
+                r = sweep(rs, city, out, sets + args.set + [f"sweep.max_vehicles={n}",
                                                  f"sweep.coherence={'true' if on else 'false'}"] +
                           (VARIANTS[variants[0]] if on else []))
                 row[f"ms_per_frame_{'on' if on else 'off'}"] = round(1e3 * r["trace_s"] / r["frames"], 1)
