@@ -231,7 +231,8 @@ class Shooter {
   bool on_target(const RayState& st, bool got, const Hit& hit) const {
     const BundleTarget& t = (*targets_)[r_];
     const int k = st.n + st.transmissions;
-    const bool own = got && static_cast<int>(hit.face.instance) == nodes_[src_].vehicle + 1;
+    const int mount = nodes_[src_].vehicle;  // -1: a road-side antenna
+    const bool own = got && mount >= 0 && static_cast<int>(hit.face.instance) == mount + 1;
     const bool vehicle_or_ground = got && !own && (hit.face.instance != 0 || is_ground(hit.face));
     if (!t.via_face) return k > 0 || vehicle_or_ground;
     if (k == 0) return got && hit.face == t.face;
@@ -879,7 +880,8 @@ void bundle_through_face(const ImageFaces& faces, const Vec3& s, std::uint32_t f
     if (den == 0) continue;
     const double t = (pl.offset - dot(pl.normal, img)) / den;
     const Vec3 p = img + t * e;
-    if (!(t > 0) || dot(p - face_sphere.centre, p - face_sphere.centre) > face_sphere.radius * face_sphere.radius) continue;
+    const Vec3 off = p - face_sphere.centre;
+    if (!(t > 0) || dot(off, off) > face_sphere.radius * face_sphere.radius) continue;
     const Vec3 c = vs.centre - img;
     const double along = dot(c, e);
     if (along < t || dot(c, c) - along * along > vs.radius * vs.radius) continue;

@@ -172,6 +172,22 @@ VehicleStreet street_with_antennas(unsigned seed, int vehicles, double half_leng
   return st;
 }
 
+// Ground and one row of buildings along y = 9..20 m (a street's north side).
+meshkit::Scene ground_and_north_row(double height) {
+  meshkit::Scene sc;
+  add_ground(sc, 200);
+  add_box_object(sc, {-90, 9, 0}, {90, 20, height}, "concrete", "north");
+  return sc;
+}
+
+// A metal box of a car's size as a vehicle model (six faces: order 3 stays
+// enumerable for the exhaustive search), its antenna 5 cm above the roof.
+std::uint32_t add_box_car(tracer::TraceScene& scene) {
+  meshkit::Scene car;
+  add_box_object(car, {-4.5, -0.9, 0}, {0, 0.9, 1.5}, "metal", "car");
+  return scene.add_vehicle_model("boxcar", car, {-2.25, 0, 1.55});
+}
+
 }  // namespace
 
 // Property: on random streets the default search finds exactly the
@@ -574,15 +590,11 @@ TEST(ImageSearch, WallCarAndGroundAtOrder3MatchExhaustive) {
   for (unsigned seed = 1; seed <= 8; ++seed) {
     std::mt19937 rng(300 + seed);
     auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    meshkit::Scene sc;
-    add_ground(sc, 200);
-    add_box_object(sc, {-90, 9, 0}, {90, 20, u(8, 16)}, "concrete", "north");
+    meshkit::Scene sc = ground_and_north_row(u(8, 16));
     const double sx = u(-30, 30);
     add_box_object(sc, {sx - 1, -7.5, 0}, {sx + 1, -6.5, 2.2}, "concrete", "shelter");  // radius 1.6 m
     tracer::TraceScene scene(sc);
-    meshkit::Scene car;
-    add_box_object(car, {-4.5, -0.9, 0}, {0, 0.9, 1.5}, "metal", "car");
-    const auto model = scene.add_vehicle_model("boxcar", car, {-2.25, 0, 1.55});
+    const auto model = add_box_car(scene);
     std::vector<tracer::VehiclePose> poses;
     for (int v = 0; v < 4; ++v)
       poses.push_back({"v" + std::to_string(v), model, {u(-50, 50), u(-5, 7), 0}, u(0, 1) < 0.5 ? 0.0 : tracer::kPi,
@@ -718,13 +730,8 @@ TEST(ImageSearch, VehicleBundlesFindChainsOfTwoVehicles) {
   for (unsigned seed = 1; seed <= 8; ++seed) {
     std::mt19937 rng(400 + seed);
     auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
-    meshkit::Scene sc;
-    add_ground(sc, 200);
-    add_box_object(sc, {-90, 9, 0}, {90, 20, u(8, 16)}, "concrete", "north");
-    tracer::TraceScene scene(sc);
-    meshkit::Scene car;
-    add_box_object(car, {-4.5, -0.9, 0}, {0, 0.9, 1.5}, "metal", "car");
-    const auto model = scene.add_vehicle_model("boxcar", car, {-2.25, 0, 1.55});
+    tracer::TraceScene scene(ground_and_north_row(u(8, 16)));
+    const auto model = add_box_car(scene);
     std::vector<tracer::VehiclePose> poses;
     for (int v = 0; v < 6; ++v)
       poses.push_back({"v" + std::to_string(v), model, {u(-40, 40), u(-6, 6), 0}, u(0, 2 * tracer::kPi), {0, 0, 0}});
