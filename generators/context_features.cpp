@@ -102,7 +102,8 @@ HeightMap HeightMap::build(const tracer::TraceScene& scene, const meshkit::Bound
 
 HeightMap::Sample HeightMap::at(double x, double y) const {
   const double fx = std::floor((x - x0_) / res_), fy = std::floor((y - y0_) / res_);
-  if (fx < 0 || fy < 0 || fx >= static_cast<double>(nx_) || fy >= static_cast<double>(ny_)) return {};
+  // Written so that a NaN coordinate (a damaged input's) is outside too.
+  if (!(fx >= 0 && fy >= 0 && fx < static_cast<double>(nx_) && fy < static_cast<double>(ny_))) return {};
   return samples_[static_cast<std::size_t>(fy) * nx_ + static_cast<std::size_t>(fx)];
 }
 

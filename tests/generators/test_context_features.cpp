@@ -8,7 +8,9 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "dataset_fixtures.hpp"
@@ -113,6 +115,19 @@ TEST_F(ContextFeatures, ABuildingAcrossTheCorridorFillsTheCellsItCoversWithItsHe
   }
   EXPECT_NE(rg::material_code("glass"), rg::material_code("concrete"));
   EXPECT_EQ(rg::material_code("unobtainium"), rg::material_code("other"));
+}
+
+// A damaged input's NaN position reads as open ground, not as an index
+// (found by fuzz_dataset_h5 under UBSan: NaN passed every < / >= test).
+TEST_F(ContextFeatures, ANanPositionReadsAsOpenGround) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const rg::HeightMap empty;
+  for (const auto& [x, y] : {std::pair{nan, 45.0}, std::pair{45.0, nan}, std::pair{nan, nan}})
+    for (const rg::HeightMap* h : {static_cast<const rg::HeightMap*>(&map), &empty}) {
+      EXPECT_EQ(h->at(x, y).height_m, 0.f);
+      EXPECT_EQ(h->at(x, y).material, 0);
+    }
+  EXPECT_FLOAT_EQ(map.at(45, 0).height_m, 12.f);  // inside the concrete building, the map does answer
 }
 
 TEST_F(ContextFeatures, AVehicleInTheCorridorAppearsWithItsPositionSizeAndClass) {
