@@ -825,28 +825,30 @@ void merge_tasks(const SnapshotPlan& plan, std::vector<TaskOut>& tasks, const st
   tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t t) { tasks[t] = TaskOut{}; });
 }
 
+// 1 - cos of the half angle of the cap the sphere subtends from `from`
+// (its solid angle over 2 pi); 2, the whole sphere, from inside it.
+double cap_one_minus_cos(const Vec3& from, const TraceScene::Sphere& s) {
+  const double d = norm(s.centre - from);
+  if (!(d > s.radius)) return 2;
+  const double sin_half = s.radius / d;
+  return sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
+}
+
 // Directions from `from` spread evenly in solid angle over the cap the
 // sphere subtends (a Fibonacci spiral), `n` of them; none from inside it.
-// Returns the cap's solid angle over 2 pi (1 - cos of its half angle).
+// Returns the cap's 1 - cos (0 from inside).
 double cap_directions(const Vec3& from, const TraceScene::Sphere& s, int n, std::vector<Vec3>& out) {
   const Vec3 c = s.centre - from;
   const double d = norm(c);
   if (!(d > s.radius)) return 0;
   const Vec3 w = (1 / d) * c, u = any_perpendicular(w), v = cross(w, u);
-  const double sin_half = s.radius / d, one_minus_cos = sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
+  const double one_minus_cos = cap_one_minus_cos(from, s);
   const double golden = kPi * (3 - std::sqrt(5.0));
   for (int k = 0; k < n; ++k) {
     const double z = 1 - one_minus_cos * (k + 0.5) / n, r = std::sqrt(std::fmax(0.0, 1 - z * z));
     out.push_back(std::cos(golden * k) * r * u + std::sin(golden * k) * r * v + z * w);
   }
   return one_minus_cos;
-}
-
-double cap_one_minus_cos(const Vec3& from, const TraceScene::Sphere& s) {
-  const double d = norm(s.centre - from);
-  if (!(d > s.radius)) return 2;
-  const double sin_half = s.radius / d;
-  return sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
 }
 
 // The angular spacing of n rays over a cap (solid angle 2 pi (1 - cos)).
@@ -952,8 +954,8 @@ void shoot_bundles(const SnapshotPlan& plan, const ImageFaces& faces, const std:
 
 // Rays aimed at the vehicles the lattice covers sparsely (two vehicles in a
 // chain, a car's cabin and then another car, a wall, a car and a car): their
-// face sequences join the lattice's candidates; the reception spheres keep
-// the lattice's spacing (a generous sphere only costs exact checks). Then,
+// face sequences join the lattice's candidates (reception spheres:
+// Shooter::reception_spacing). Then,
 // through every vehicle face those rays reflect on towards another vehicle,
 // a bundle at that vehicle. No diffuse gathering: the diffuse estimator
 // weights its rays by the lattice's solid angle.
