@@ -29,7 +29,7 @@
 #include "pipeline/sinr_stage.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/sweep_stage.hpp"
-#include "pipeline/tradeoff_stage.hpp"
+#include "pipeline/tradeoff/stage.hpp"
 #include "pipeline/traffic_stage.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "pipeline/trace_stage.hpp"
@@ -470,8 +470,11 @@ Subcommand tradeoff_command(CLI::App& app) {
   to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
   add_set_option(to, tradeoff.set);
   return {to, [o](const Argv& args) {
-            o->tradeoff.chart = !o->no_chart;
-            const auto r = rp::run_tradeoff_stage(o->tradeoff, args);
+            auto& tradeoff = o->tradeoff;
+            tradeoff.chart = !o->no_chart;
+            const auto settings = tradeoff.city.empty() ? rp::load_settings(tradeoff.config, tradeoff.set)
+                                                        : rp::load_city_settings(tradeoff.city, tradeoff.set);
+            const auto r = rp::run_tradeoff_stage(tradeoff, settings, args);
             std::cout << r["table"].get<std::string>();
             std::cout << "tradeoff: " << r["csv"].get<std::string>() << ", " << r["json"].get<std::string>();
             if (r.contains("png")) std::cout << "\npicture: " << r["png"].get<std::string>();

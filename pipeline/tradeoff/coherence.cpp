@@ -1,4 +1,4 @@
-#include "pipeline/tradeoff_coherence.hpp"
+#include "pipeline/tradeoff/coherence.hpp"
 
 #include <algorithm>
 #include <cmath>

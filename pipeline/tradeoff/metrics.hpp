@@ -1,59 +1,20 @@
-// Stage `raysweep tradeoff`: accuracy against cost of the tracer settings.
-//
-// A few snapshots of a city's traffic (the vehicles a sweep would trace) are
-// traced over a grid of settings (rays per source, maximum depth, each
-// mechanism on/off, vehicle LOD, coarser static geometry) and against a
-// high-effort reference. Per setting: the time of trace_snapshot per
-// snapshot, and against the reference on the same snapshots the per-pair
-// path-gain error (median and 95th percentile, dB), the LoS-class agreement
-// and the fraction of the reference power found. Writes tradeoff.csv,
-// tradeoff.json (with provenance) and tradeoff.png (time against error, the
-// Pareto front marked; python/tradeoff_chart.py). The coherence toggle: a
-// short window of consecutive frames swept with [sweep] coherence off and on
-// (tradeoff_coherence.hpp), in tradeoff.json's "coherence".
+// `raysweep tradeoff`'s metrics: each setting's accuracy and cost against
+// the reference (the grid's first setting) on the same snapshots, the
+// Pareto front in (time, p95 error) and the suggestion.
 #pragma once
 
 #include <array>
-#include <string>
+#include <cstddef>
 #include <utility>
 #include <vector>
 
-#include <nlohmann/json.hpp>
+#include "pipeline/tradeoff/grid.hpp"
 
-#include "tracer/config.hpp"
+namespace raysweep::tracer {
+struct Snapshot;
+}
 
 namespace raysweep::pipeline {
-
-struct TradeoffArgs {
-  // Either a city file (the outputs of an earlier `raysweep run CITY.toml`,
-  // under city_out when it ran with --out)...
-  std::string city, city_out;
-  // ...or explicit inputs, as for `raysweep sweep`.
-  std::string scene, vehicles, fcd, config, rsus;
-  std::vector<std::string> vtypes;
-  std::vector<std::string> set;  // `--set TABLE.KEY=VALUE` over the city or config file
-  std::string out;  // default with a city: <city out>/tradeoff
-  int snapshots = 0;  // 0: 4 (--quick: 2)
-  std::string rays, depths, simplify;  // comma-separated lists; empty: the defaults
-  int reference_rays = 0;              // 0: 4 x the largest grid value
-  int reference_depth = -1;            // < 0: largest grid depth + 1, at most 5
-  bool quick = false;                  // a tiny grid (tests)
-  int repeats = 1;                     // rounds over all snapshots and settings; a snapshot's time is its fastest
-  double target_p95_db = 3;            // the suggestion: cheapest setting within this p95 error
-  // The coherence toggle: this many consecutive frames swept with [sweep]
-  // coherence off and on (tradeoff_coherence.hpp); 0: none; < 0: 20 (--quick 4).
-  int coherence_window = -1;
-  bool chart = true;
-};
-
-// One setting of the grid.
-struct TradeoffSetting {
-  std::string label;
-  tracer::TracerConfig tracer;
-  int lod = -1;              // vehicle LOD; -1: each library entry's default
-  double simplify_m = 0;     // static geometry decimated within this error (m); 0: as built
-  bool reference = false;
-};
 
 // Accuracy and cost of one setting over the snapshots.
 struct TradeoffResult {
@@ -104,11 +65,23 @@ void compare_to_reference(const std::vector<PairGains>& setting, const std::vect
 // <= and error <= with at least one strictly smaller. NaN errors are never on it.
 std::vector<bool> pareto_front(const std::vector<std::pair<double, double>>& time_error);
 
-// "1024,4096" -> {1024, 4096}; std::invalid_argument naming `option` for
-// anything but integers in [min, max].
-std::vector<int> parse_int_list(const std::string& option, const std::string& text, int min, int max);
-std::vector<double> parse_number_list(const std::string& option, const std::string& text, double min);
+// Per pair of one snapshot traced: incoherent gain, LoS class and the power
+// of each mechanism class.
+PairGains pair_gains(const tracer::Snapshot& traced);
 
-nlohmann::json run_tradeoff_stage(const TradeoffArgs& args, const std::vector<std::string>& argv);
+// Per setting: per-snapshot gains (first round), path and ray totals, and
+// per snapshot its fastest time over the rounds (measure.hpp).
+struct GridTraces {
+  std::vector<std::vector<PairGains>> gains;
+  std::vector<double> paths, rays_traced;
+  std::vector<std::vector<double>> best;
+};
+
+// Each setting against the reference (grid[0]), and the Pareto front.
+// `rx_gain_db`: G_rx, the weakest gain a receiver hears.
+std::vector<TradeoffResult> score(const GridTraces& t, std::size_t n_snapshots, double rx_gain_db);
+
+// The cheapest setting within the target error that agrees on the LoS class (-1: none).
+int suggest(const std::vector<TradeoffSetting>& grid, const std::vector<TradeoffResult>& results, double target_p95_db);
 
 }  // namespace raysweep::pipeline
