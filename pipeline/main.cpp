@@ -16,6 +16,7 @@
 #include "generators/dataset_writer.hpp"
 #include "meshkit/errors.hpp"
 #include "pipeline/city_run.hpp"
+#include "pipeline/cli/docs.hpp"
 #include "pipeline/settings/config_file.hpp"
 #include "pipeline/settings/settings.hpp"
 #include "pipeline/settings/tables.hpp"
@@ -588,12 +589,27 @@ Subcommand info_command(CLI::App& app) {
           }};
 }
 
-// In the order `raysweep --help` lists them.
+// `raysweep help`: every subcommand's options; with --docs docs/cli.md.
+Subcommand help_command(CLI::App& app) {
+  auto docs = std::make_shared<bool>(false);
+  auto* hp = app.add_subcommand("help", "every subcommand's options, or the command-line reference (docs/cli.md)");
+  hp->add_flag("--docs", *docs, "print the command-line reference as Markdown (docs/cli.md is this)");
+  return {hp, [docs, &app](const Argv&) {
+            // app.help() would answer for the subcommand parsed: this one.
+            std::cout << (*docs ? rp::cli_docs(app)
+                                : app.get_formatter()->make_help(&app, app.get_name(), CLI::AppFormatMode::All));
+            return 0;
+          }};
+}
+
+// In the order `raysweep --help` and docs/cli.md list them: a city's run,
+// its stages in order, the tools around them.
 using MakeSubcommand = Subcommand (*)(CLI::App&);
 constexpr MakeSubcommand kSubcommands[] = {
-    scene_command,  vehicles_command, trace_command,     poses_command,  traffic_command,  sweep_command,
-    run_command,    merge_command,    sinr_command,      ns3_table_command, report_command, tradeoff_command,
-    radiomap_command, render_command, features_command, ml_command, config_command, validate_command, info_command};
+    run_command,      scene_command,    vehicles_command, traffic_command,   sweep_command,    merge_command,
+    trace_command,    poses_command,    sinr_command,     report_command,    ns3_table_command, radiomap_command,
+    render_command,   tradeoff_command, features_command, ml_command,        config_command,   validate_command,
+    info_command,     help_command};
 
 // Bad input (files, configs, arguments) exits 2, any other failure 1.
 int run_reporting_errors(const Subcommand& command, const Argv& args) {
