@@ -503,14 +503,14 @@ void register_all() {
         ->UseRealTime();
     auto* snap = benchmark::RegisterBenchmark(("BM_Snapshot/" + scene).c_str(), BM_Snapshot, scene);
     for (int n : {5, 10, 20, 40, 60, 120}) snap->Args({n, kSpecular});
-    // Every mechanism, how it grows with vehicles (issue 14).
+    // Every mechanism, how it grows with vehicles.
     for (int n : {5, 10, 20, 40, 120}) snap->Args({n, kAll});
-    // The cost of each mechanism (issue 5), at two traffic densities.
+    // The cost of each mechanism, at two traffic densities.
     for (int n : {20, 60})
       for (int m : {int(kDiffraction), int(kDiffuse), int(kAll), kSbr | kSpecular, kSbr | kAll, kTiles | kAll,
                     kHybrid | kAll})
         snap->Args({n, m});
-    // What each completeness class costs (issue 14), at 60 vehicles.
+    // What each completeness class costs, at 60 vehicles.
     for (int m : {kSpecular | kNoGround3, kSpecular | kNoMultiBounce, kAll | kOneEnd}) snap->Args({60, m});
     // The hybrid diffuse integration with coarser tiles (a default candidate).
     snap->Args({60, kAll | kHybrid | kCoarseTiles});

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Frame-to-frame coherence: speed and error budget (issue 38).
+"""Frame-to-frame coherence: speed and error budget.
 
 For each city, the sweep stage of `raysweep run CITY --until sweep` in one
 session with `--set sweep.coherence=false` and with `=true` under each rule of

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Dataset store levels (issue 41): size and the sweep's time outside tracing per level.
+"""Dataset store levels: size and the sweep's time outside tracing per level.
 
 Sweeps a city (`raysweep run CITY --until sweep`, the stages before it built
 once) with `--set sweep.store=LEVEL` for each level, on the same scene, vehicles

@@ -261,8 +261,8 @@ void write_u32(unsigned char* p, std::uint32_t v) {
 }  // namespace
 
 // tinygltf 2.7 rejects an indices accessor without a bufferView ("accessor[n]
-// invalid bufferView", tinygltf issues #328/#378, fixed upstream by PR #456 in
-// 2023), yet that is exactly what KHR_draco_mesh_compression prescribes. Draco
+// invalid bufferView": https://github.com/syoyo/tinygltf/issues/328 and /378,
+// fixed upstream in 2023 by https://github.com/syoyo/tinygltf/pull/456), yet that is exactly what KHR_draco_mesh_compression prescribes. Draco
 // primitives do not need the accessor (the faces come from the blob), so drop
 // the reference before tinygltf sees the JSON. Anything that is not a
 // well-formed GLB is passed through untouched for tinygltf to report.

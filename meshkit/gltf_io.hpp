@@ -53,8 +53,9 @@ Scene read_glb(const std::string& path);
 // KHR_draco_mesh_compression (indices and POSITION accessors without a
 // bufferView) and open in Draco-capable readers (three.js, upstream Blender
 // builds), but Debian 12's tinygltf 2.7 refuses them ("accessor[n] invalid
-// bufferView", tinygltf #328, fixed upstream in 2023) and Debian's Blender 3.4
-// ships no Draco decoder. Reason for the warning the stages print:
+// bufferView", https://github.com/syoyo/tinygltf/issues/328, fixed upstream
+// in 2023) and Debian's Blender 3.4 ships no Draco decoder. Reason for the
+// warning the stages print:
 extern const char* const kDracoReadersNote;
 
 // The workaround for tinygltf 2.7: drops the `indices` reference of Draco

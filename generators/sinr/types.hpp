@@ -1,4 +1,4 @@
-// Shared vocabulary of the SINR generator (VaN3Twin coexistence, issue 7):
+// Shared vocabulary of the SINR generator (VaN3Twin coexistence):
 // radio access technologies, transmissions on the shared channel, and the
 // outcome of one reception attempt. Codes are part of the SINR file schema
 // (schemas/raysweep_sinr.schema.json) and must not be renumbered.

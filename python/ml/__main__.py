@@ -14,7 +14,7 @@ import numpy as np
 
 
 def parse_args(argv):
-    p = argparse.ArgumentParser(prog="python -m ml", description="ML benchmark of raysweep datasets (issue 40)")
+    p = argparse.ArgumentParser(prog="python -m ml", description="ML benchmark of raysweep datasets")
     p.add_argument("--city", action="append", required=True, metavar="NAME=RUN_DIR",
                    help="a city's run directory (dataset.h5, optional features.h5 and sinr/ray.h5); repeatable")
     p.add_argument("--out", required=True, help="output directory: results.json, report.md, PNGs")

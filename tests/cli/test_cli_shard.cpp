@@ -1,4 +1,4 @@
-// Scale-out end to end on the demo city (issue 17): shards of a sweep
+// Scale-out end to end on the demo city: shards of a sweep
 // (`run --shard`, `sweep --shard`) merged by copy are byte-identical to the
 // single-process dataset, and the virtual merge reads identically (h5diff);
 // the merge refuses gaps, duplicates and shards of other runs; an interrupted

@@ -299,7 +299,7 @@ TEST(Sweep, VehicleInteractionsNameTheNodeAndThreadsDoNotMatter) {
   EXPECT_TRUE(saw_vehicle);
 }
 
-// Issue 5's budget rules: links beyond the sensitivity's free-space reach are
+// The tracer's budget rules: links beyond the sensitivity's free-space reach are
 // labelled out of range without paths; paths 60 dB below a link's strongest
 // are dropped and counted, and tracing with the threshold off finds exactly
 // the kept plus the dropped ones.

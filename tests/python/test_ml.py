@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Checks python/ml (the ML benchmark of issue 40): TR 37.885 formulas, metrics, the frame bootstrap,
+"""Checks python/ml (the ML benchmark): TR 37.885 formulas, metrics, the frame bootstrap,
 a CNN training step, features.h5 reading, and the whole pipeline on two tiny synthetic cities.
 
 usage: test_ml.py [DATASET.h5]   (optional: a small channel dataset, e.g. the one of

@@ -206,7 +206,7 @@ TEST(ImageSearch, RandomStreetsMatchExhaustiveToOrder2) {
   EXPECT_GT(compared, 300u);
 }
 
-// The street: ground, two building walls, 40 vehicle-sized metal
+// A crowded street: ground, two building walls, 40 vehicle-sized metal
 // boxes, 20 antennas at 1.6 m (190 pairs). Shoot-and-bounce alone missed 88
 // of its exact paths of order <= 2 at the default ray count.
 TEST(ImageSearch, FortyBoxStreetHasEveryPathOfOrder2) {
@@ -515,7 +515,7 @@ TEST(ImageSearch, StaticThirdOrderThroughTheGroundMatchesExhaustive) {
 // against the exhaustive search, with and without the order-3 sequences of
 // the rays' lit beam pairs (BeamPair: two static faces the rays reflect on,
 // or the first and a small face they pass; the third face from their beam,
-// exactly). The criterion: >= 99.9 % of the order-3 power. What
+// exactly). The criterion: >= 99.9 % of the order-3 power. What
 // stays missed is paths inside the buildings (through two walls, about
 // 100 dB below the street's).
 TEST(ImageSearch, StaticThirdOrderFromBeamPairsMatchesExhaustive) {
