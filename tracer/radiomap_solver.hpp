@@ -1,6 +1,6 @@
 // One transmitter to many receiver points (a radio map's voxel centres),
-// solved through the tracer's public API with the transmitter's work done
-// once: its image sources (order 1 and 2, exact: tracer/image_search.hpp)
+// beside the path solver (tracer/solver.hpp), with the transmitter's work
+// done once: its image sources (order 1 and 2, exact: tracer/image_search.hpp)
 // are built once per batch of points and tested against the whole batch,
 // and the edges it can see the outside of are listed once.
 //
@@ -12,7 +12,7 @@
 //     in `trace` and are left out here;
 //   - no diffuse scattering here: with tracer.diffuse on (integration
 //     "rays"), rough surfaces keep sqrt(1 - S^2) of the specular field as in
-//     `trace`, and the caller adds tracer::diffuse_power (the same gathering
+//     `trace`, and the caller adds diffuse_power (the same gathering
 //     from the transmitter's rays); otherwise they reflect their whole
 //     |Gamma|^2 (energy kept, no lobe);
 //   - diffraction with a reflection: before the edge only (the
@@ -33,11 +33,11 @@
 #include "tracer/solver.hpp"
 #include "tracer/trace_scene.hpp"
 
-namespace raysweep::generators {
+namespace raysweep::tracer {
 
 struct RadioMapPointResult {
-  double gain = 0;  // incoherent path gain sum |a|^2 (linear), 0 when no path
-  tracer::LosClass los = tracer::LosClass::LOS;  // geometric class of the direct segment
+  double gain = 0;               // incoherent path gain sum |a|^2 (linear), 0 when no path
+  LosClass los = LosClass::LOS;  // geometric class of the direct segment
   std::uint32_t paths = 0;
 };
 
@@ -49,13 +49,12 @@ struct RadioMapSolveStats {
 // Every point's incoherent path gain from `tx` (a bare node, or a vehicle
 // antenna of the scene's current frame). Deterministic for any number of
 // threads (each point's sum runs in path order).
-std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, const tracer::Node& tx,
-                                              const std::vector<tracer::Vec3>& points,
-                                              const tracer::TracerConfig& config, const tracer::RadioConfig& radio,
+std::vector<RadioMapPointResult> solve_points(const TraceScene& scene, const Node& tx, const std::vector<Vec3>& points,
+                                              const TracerConfig& config, const RadioConfig& radio,
                                               RadioMapSolveStats* stats = nullptr);
 
 // True when `p` lies inside a closed static object (a building): the first
 // face straight above it is seen from its back. Points under nothing are outside.
-bool inside_static(const tracer::TraceScene& scene, const tracer::Vec3& p);
+bool inside_static(const TraceScene& scene, const Vec3& p);
 
-}  // namespace raysweep::generators
+}  // namespace raysweep::tracer

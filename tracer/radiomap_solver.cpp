@@ -1,4 +1,4 @@
-#include "generators/radiomap_solver.hpp"
+#include "tracer/radiomap_solver.hpp"
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -7,48 +7,38 @@
 #include <cmath>
 #include <optional>
 
+#include "tracer/diffraction_path.hpp"
 #include "tracer/em.hpp"
 #include "tracer/fresnel.hpp"
 #include "tracer/image_search.hpp"
 
-namespace raysweep::generators {
-
-using tracer::Node;
-using tracer::Vec3;
-using namespace tracer;  // vector helpers (tracer/vec.hpp)
+namespace raysweep::tracer {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Points per batch: one image-source pass per batch (the sources are built
 // once per batch and tested against all of its points at once).
 constexpr std::size_t kBatch = 2048;
 
-// Angle of v around the edge, from t0 towards n0, in [0, 2 pi).
-double edge_angle(const tracer::Edge& e, const Vec3& v) {
-  const double a = std::atan2(dot(v, e.n0), dot(v, e.t0));
-  return a < 0 ? a + 2 * kPi : a;
-}
-
 // |a|^2 of the free-space direct path from `from` to `to` (antenna patterns
 // and polarisation included): what compute_path gives for an unobstructed
 // direct segment.
-double free_space_gain(const tracer::RadioConfig& radio, const Node& from, const Node& to) {
+double free_space_gain(const RadioConfig& radio, const Node& from, const Node& to) {
   const Vec3 d = to.position - from.position;
   const double len = norm(d);
   if (!(len > 0)) return 0;
   const Vec3 u = (1.0 / len) * d;
-  const Vec3 e_t = tracer::antenna_field(radio.antenna, u, from.forward);
-  const Vec3 f_r = tracer::antenna_field(radio.antenna, -u, to.forward);
-  const double lambda = tracer::kSpeedOfLight / radio.frequency_hz;
+  const Vec3 e_t = antenna_field(radio.antenna, u, from.forward);
+  const Vec3 f_r = antenna_field(radio.antenna, -u, to.forward);
+  const double lambda = kSpeedOfLight / radio.frequency_hz;
   const double amp = lambda / (4 * kPi * len) * dot(f_r, e_t);
   return amp * amp;
 }
 
 }  // namespace
 
-bool inside_static(const tracer::TraceScene& scene, const Vec3& p) {
-  std::vector<tracer::Hit> hits;
+bool inside_static(const TraceScene& scene, const Vec3& p) {
+  std::vector<Hit> hits;
   scene.all_hits(p, Vec3{0, 0, 1}, 0, 1e7, hits, 64);
   for (const auto& h : hits) {
     if (scene.is_vehicle(h.face)) continue;
@@ -59,19 +49,19 @@ bool inside_static(const tracer::TraceScene& scene, const Vec3& p) {
   return false;
 }
 
-std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, const Node& tx,
-                                              const std::vector<Vec3>& points, const tracer::TracerConfig& cfg,
-                                              const tracer::RadioConfig& radio, RadioMapSolveStats* stats) {
-  tracer::validate(cfg, radio);
-  // With diffuse scattering by rays (tracer::diffuse_power adds it), rough
+std::vector<RadioMapPointResult> solve_points(const TraceScene& scene, const Node& tx,
+                                              const std::vector<Vec3>& points, const TracerConfig& cfg,
+                                              const RadioConfig& radio, RadioMapSolveStats* stats) {
+  validate(cfg, radio);
+  // With diffuse scattering by rays (diffuse_power adds it), rough
   // surfaces keep sqrt(1 - S^2) of the specular field as in `trace`; else
   // they reflect their whole |Gamma|^2 (energy kept, no lobe).
-  const tracer::Electromagnetics em(scene.material_names(), radio, cfg.materials,
-                                    cfg.diffuse && cfg.diffuse_integration != tracer::DiffuseIntegration::tiles);
-  const double range = tracer::max_range_m(cfg, radio);
+  const Electromagnetics em(scene.material_names(), radio, cfg.materials,
+                                    cfg.diffuse && cfg.diffuse_integration != DiffuseIntegration::tiles);
+  const double range = max_range_m(cfg, radio);
   const double lambda = em.wavelength();
   const int order = cfg.specular ? std::min(cfg.max_depth, 2) : 0;
-  const tracer::ImageFaces faces = tracer::image_faces(scene);
+  const ImageFaces faces = image_faces(scene);
 
   // Edges whose outside the transmitter sees within range (the cheap half
   // of the diffraction test, done once).
@@ -79,22 +69,22 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
   if (cfg.diffraction) {
     const auto& edges = scene.edges();
     for (std::uint32_t k = 0; k < edges.size(); ++k) {
-      const tracer::Edge& e = edges[k];
+      const Edge& e = edges[k];
       const Vec3 w = tx.position - e.a;
       const double z = std::clamp(dot(w, e.e), 0.0, norm(e.b - e.a));
       if (norm(tx.position - (e.a + z * e.e)) > range) continue;
       if (edge_angle(e, w - dot(w, e.e) * e.e) > e.n * kPi) continue;
       // Hidden whole from the transmitter by one convex face: no leg reaches it.
       const Vec3 ends[2] = {e.a, e.b};
-      if (!tracer::hidden_by_convex_face(scene, faces, tx.position, ends, 2, nullptr, 0)) tx_edges.push_back(k);
+      if (!hidden_by_convex_face(scene, faces, tx.position, ends, 2, nullptr, 0)) tx_edges.push_back(k);
     }
   }
   // Reflection-diffraction (a static face, then the edge), as `trace`
   // lists it from a pair's ends; the transmitter's list once.
-  std::vector<tracer::ReflectedEdge> tx_reflected;
-  if (cfg.diffraction && cfg.diffraction_reflection) tracer::reflected_edges(scene, faces, tx.position, range, tx_reflected);
+  std::vector<ReflectedEdge> tx_reflected;
+  if (cfg.diffraction && cfg.diffraction_reflection) reflected_edges(scene, faces, tx.position, range, tx_reflected);
   const bool vehicles = !scene.vehicles().empty();
-  std::optional<tracer::FresnelObstacles> obstacles;
+  std::optional<FresnelObstacles> obstacles;
   if (vehicles && cfg.vehicle_diffraction) obstacles.emplace(scene);
 
   std::vector<RadioMapPointResult> out(points.size());
@@ -114,9 +104,9 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       nodes.push_back(n);
     }
     // Candidate face sequences of every point in range, by receiver index.
-    std::vector<tracer::ImageCandidate> found;
-    if (order > 0) tracer::image_candidates(scene, faces, nodes, 0, receivers, order, found);
-    std::vector<std::vector<std::vector<tracer::FaceRef>>> cand(nodes.size());
+    std::vector<ImageCandidate> found;
+    if (order > 0) image_candidates(scene, faces, nodes, 0, receivers, order, found);
+    std::vector<std::vector<std::vector<FaceRef>>> cand(nodes.size());
     for (auto& c : found) cand[c.rx].push_back(std::move(c.faces));
 
     std::vector<std::uint32_t> blockers;
@@ -124,7 +114,7 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
       RadioMapPointResult& res = out[begin + r - 1];
       const Node& rx = nodes[r];
       ++st.points;
-      res.los = tracer::classify_los(scene, tx.position, rx.position, blockers, &st.rays);
+      res.los = classify_los(scene, tx.position, rx.position, blockers, &st.rays);
       if (norm(rx.position - tx.position) > range) {
         ++st.out_of_range;
         continue;
@@ -139,8 +129,8 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
         ++n_paths;
       };
       if (cfg.los) {
-        if (res.los == tracer::LosClass::LOS) {
-          if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
+        if (res.los == LosClass::LOS) {
+          if (auto p = compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
             double g = std::norm(p->a);
             if (obstacles) {
               const auto ke = obstacles->vehicle_knife_edges(tx.position, rx.position, lambda, tx.vehicle, -1);
@@ -148,31 +138,31 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
             }
             add(g);
           }
-        } else if (res.los == tracer::LosClass::NLOSV && obstacles) {
+        } else if (res.los == LosClass::NLOSV && obstacles) {
           const auto ke = obstacles->vehicle_knife_edges(tx.position, rx.position, lambda, tx.vehicle, -1);
           if (ke.loss_db > 0) add(free_space_gain(radio, tx, rx) * std::pow(10.0, -ke.loss_db / 10));
-        } else if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
+        } else if (auto p = compute_path(scene, em, cfg, tx, rx, {}, nullptr, &st.rays)) {
           add(std::norm(p->a));  // through slabs
         }
       }
       st.candidates += seqs.size() + tx_edges.size();
       for (const auto& s : seqs)
-        if (auto p = tracer::compute_path(scene, em, cfg, tx, rx, s, nullptr, &st.rays)) add(std::norm(p->a));
+        if (auto p = compute_path(scene, em, cfg, tx, rx, s, nullptr, &st.rays)) add(std::norm(p->a));
       for (auto k : tx_edges)
-        if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, scene.edges()[k], &st.rays))
+        if (auto p = compute_diffraction_path(scene, em, tx, rx, scene.edges()[k], &st.rays))
           add(std::norm(p->a));
       // The reflection before the edge: Keller's point from the
       // transmitter's image and the point on the part of the edge in the
       // face's beam (the filter `trace` applies), then the exact path.
       for (const auto& re : tx_reflected) {
-        const tracer::Edge& e = scene.edges()[re.edge];
+        const Edge& e = scene.edges()[re.edge];
         const Vec3 w = rx.position - e.a;
         const double zr = dot(w, e.e), rr = norm(w - zr * e.e);
         if (!re.keller_on_part(zr, rr)) continue;
         if (edge_angle(e, w - zr * e.e) > e.n * kPi) continue;  // the point inside the wedge
         ++st.candidates;
-        const tracer::FaceRef face{0, re.face};
-        if (auto p = tracer::compute_diffraction_path(scene, em, tx, rx, e, &st.rays, &face, nullptr))
+        const FaceRef face{0, re.face};
+        if (auto p = compute_diffraction_path(scene, em, tx, rx, e, &st.rays, &face, nullptr))
           add(std::norm(p->a));
       }
       res.gain = gain;
@@ -193,4 +183,4 @@ std::vector<RadioMapPointResult> solve_points(const tracer::TraceScene& scene, c
   return out;
 }
 
-}  // namespace raysweep::generators
+}  // namespace raysweep::tracer
