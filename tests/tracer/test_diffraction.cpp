@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "closed_forms.hpp"
-#include "tracer/image_search.hpp"
+#include "image_search.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;

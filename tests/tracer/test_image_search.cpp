@@ -14,7 +14,7 @@
 #include <string>
 #include <vector>
 
-#include "tracer/image_search.hpp"
+#include "image_search.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 

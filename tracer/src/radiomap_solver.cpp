@@ -7,10 +7,10 @@
 #include <cmath>
 #include <optional>
 
-#include "tracer/diffraction_path.hpp"
+#include "diffraction_path.hpp"
+#include "fresnel.hpp"
+#include "image_search.hpp"
 #include "tracer/em.hpp"
-#include "tracer/fresnel.hpp"
-#include "tracer/image_search.hpp"
 
 namespace raysweep::tracer {
 

@@ -1,4 +1,4 @@
-#include "tracer/image_search.hpp"
+#include "image_search.hpp"
 
 #include <algorithm>
 #include <array>

@@ -9,8 +9,8 @@
 #include <chrono>
 #include <cmath>
 
-#include "tracer/diffraction_path.hpp"
-#include "tracer/mechanism.hpp"
+#include "diffraction_path.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

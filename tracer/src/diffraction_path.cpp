@@ -1,11 +1,11 @@
 // UTD diffraction paths over one edge (Keller's point, Luebbers'
 // coefficients), with an optional specular reflection before or after it.
-#include "tracer/diffraction_path.hpp"
+#include "diffraction_path.hpp"
 
 #include <algorithm>
 #include <cmath>
 
-#include "tracer/field.hpp"
+#include "field.hpp"
 
 namespace raysweep::tracer {
 

@@ -9,8 +9,8 @@
 #include <cmath>
 #include <optional>
 
-#include "tracer/exact_path.hpp"
-#include "tracer/mechanism.hpp"
+#include "exact_path.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

@@ -1,4 +1,4 @@
-#include "tracer/mechanism.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

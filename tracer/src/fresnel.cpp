@@ -1,4 +1,4 @@
-#include "tracer/fresnel.hpp"
+#include "fresnel.hpp"
 
 #include "tracer/em.hpp"
 

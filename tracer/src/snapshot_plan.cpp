@@ -1,4 +1,4 @@
-#include "tracer/snapshot_plan.hpp"
+#include "snapshot_plan.hpp"
 
 #include <algorithm>
 #include <stdexcept>

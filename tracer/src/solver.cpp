@@ -11,7 +11,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "tracer/mechanism.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

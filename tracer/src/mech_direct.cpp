@@ -2,8 +2,8 @@
 // edges (ITU-R P.526, Deygout: tracer/fresnel.hpp).
 #include <cmath>
 
-#include "tracer/exact_path.hpp"
-#include "tracer/mechanism.hpp"
+#include "exact_path.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

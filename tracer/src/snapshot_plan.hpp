@@ -10,9 +10,9 @@
 #include <utility>
 #include <vector>
 
-#include "tracer/fresnel.hpp"
-#include "tracer/image_search.hpp"
-#include "tracer/shoot.hpp"
+#include "fresnel.hpp"
+#include "image_search.hpp"
+#include "shoot.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {

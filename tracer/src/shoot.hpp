@@ -11,7 +11,7 @@
 #include <utility>
 #include <vector>
 
-#include "tracer/image_search.hpp"
+#include "image_search.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {

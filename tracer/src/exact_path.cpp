@@ -1,13 +1,13 @@
 // The exact specular / refracted path through a given face sequence: image
 // method in double precision, every segment traced, slabs on the way
 // added, the field carried through each interaction's TE/TM basis.
-#include "tracer/exact_path.hpp"
+#include "exact_path.hpp"
 
 #include <algorithm>
 #include <array>
 #include <cmath>
 
-#include "tracer/field.hpp"
+#include "field.hpp"
 
 namespace raysweep::tracer {
 

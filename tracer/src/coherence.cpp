@@ -12,8 +12,8 @@
 #include <tuple>
 #include <unordered_map>
 
-#include "tracer/image_search.hpp"
-#include "tracer/mechanism.hpp"
+#include "image_search.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

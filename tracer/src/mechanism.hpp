@@ -8,7 +8,7 @@
 #include <memory>
 #include <vector>
 
-#include "tracer/snapshot_plan.hpp"
+#include "snapshot_plan.hpp"
 
 namespace raysweep::tracer {
 

@@ -5,8 +5,8 @@
 #include <chrono>
 #include <optional>
 
-#include "tracer/diffuse.hpp"
-#include "tracer/mechanism.hpp"
+#include "diffuse.hpp"
+#include "mechanism.hpp"
 
 namespace raysweep::tracer {
 

@@ -1,4 +1,4 @@
-#include "tracer/shoot.hpp"
+#include "shoot.hpp"
 
 #include <tbb/parallel_for.h>
 
@@ -9,8 +9,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
-#include "tracer/field.hpp"
-#include "tracer/snapshot_plan.hpp"
+#include "field.hpp"
+#include "snapshot_plan.hpp"
 
 namespace raysweep::tracer {
 

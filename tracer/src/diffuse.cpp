@@ -1,4 +1,4 @@
-#include "tracer/diffuse.hpp"
+#include "diffuse.hpp"
 
 #include <tbb/parallel_for.h>
 
