@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "closed_forms.hpp"
+#include "em/utd.hpp"
 #include "image_search.hpp"
 #include "tracer_fixtures.hpp"
 

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "closed_forms.hpp"
+#include "em/scattering.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;

@@ -5,7 +5,8 @@
 #include <algorithm>
 #include <cmath>
 
-#include "field.hpp"
+#include "em/field.hpp"
+#include "em/utd.hpp"
 
 namespace raysweep::tracer {
 

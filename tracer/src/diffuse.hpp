@@ -32,6 +32,7 @@
 #include <memory>
 #include <vector>
 
+#include "em/scattering.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {

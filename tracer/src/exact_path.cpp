@@ -7,7 +7,7 @@
 #include <array>
 #include <cmath>
 
-#include "field.hpp"
+#include "em/field.hpp"
 
 namespace raysweep::tracer {
 

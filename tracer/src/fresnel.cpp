@@ -1,6 +1,6 @@
 #include "fresnel.hpp"
 
-#include "tracer/em.hpp"
+#include "tracer/em/constants.hpp"
 
 #include <algorithm>
 #include <array>

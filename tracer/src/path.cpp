@@ -1,6 +1,6 @@
 #include "tracer/path.hpp"
 
-#include "tracer/em.hpp"
+#include "tracer/em/constants.hpp"
 
 #include <algorithm>
 #include <cmath>

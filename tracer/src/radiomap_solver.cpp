@@ -10,7 +10,7 @@
 #include "diffraction_path.hpp"
 #include "fresnel.hpp"
 #include "image_search.hpp"
-#include "tracer/em.hpp"
+#include "tracer/em/antenna.hpp"
 
 namespace raysweep::tracer {
 

@@ -9,7 +9,8 @@
 #include <unordered_map>
 #include <unordered_set>
 
-#include "field.hpp"
+#include "em/field.hpp"
+#include "em/scattering.hpp"
 #include "snapshot_plan.hpp"
 
 namespace raysweep::tracer {

@@ -15,7 +15,7 @@
 #include <stdexcept>
 
 #include "meshkit/planar_faces.hpp"
-#include "tracer/em.hpp"
+#include "tracer/em/constants.hpp"
 
 namespace raysweep::tracer {
 

@@ -5,7 +5,8 @@
 #include <map>
 #include <string>
 
-#include "tracer/em.hpp"
+#include "tracer/em/antenna.hpp"
+#include "tracer/em/materials.hpp"
 
 namespace raysweep::tracer {
 

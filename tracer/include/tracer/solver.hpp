@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "tracer/config.hpp"
-#include "tracer/electromagnetics.hpp"
+#include "tracer/em/coefficients.hpp"
 #include "tracer/path.hpp"
 #include "tracer/trace_scene.hpp"
 

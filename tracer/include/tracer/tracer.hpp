@@ -7,7 +7,9 @@
 
 #include "tracer/channel.hpp"
 #include "tracer/config.hpp"
-#include "tracer/em.hpp"
+#include "tracer/em/antenna.hpp"
+#include "tracer/em/coefficients.hpp"
+#include "tracer/em/materials.hpp"
 #include "tracer/path.hpp"
 #include "tracer/solver.hpp"
 #include "tracer/trace_scene.hpp"

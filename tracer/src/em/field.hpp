@@ -5,7 +5,7 @@
 
 #include <array>
 
-#include "tracer/em.hpp"
+#include "tracer/em/coefficients.hpp"
 
 namespace raysweep::tracer {
 

@@ -1,8 +1,8 @@
-#include "tracer/electromagnetics.hpp"
+#include "tracer/config.hpp"
 
-#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace raysweep::tracer {
 
@@ -30,44 +30,12 @@ void validate(const TracerConfig& t, const RadioConfig& r) {
   if (!std::isfinite(r.sensitivity_dbm)) bad("radio.sensitivity_dbm must be finite");
 }
 
-double peak_gain(AntennaPattern p) {
-  switch (p) {
-    case AntennaPattern::isotropic: return 1.0;
-    case AntennaPattern::short_dipole: return 1.5;
-    case AntennaPattern::halfwave_dipole: return 1.641;
-  }
-  return 1.0;
-}
-
 double max_range_m(const TracerConfig& t, const RadioConfig& r) {
   // Free space: P_rx = P_tx G^2 (lambda / (4 pi d))^2.
   const double budget_db = r.tx_power_dbm - r.sensitivity_dbm + 20 * std::log10(peak_gain(r.antenna.pattern)) +
                            t.range_margin_db;
   const double lambda = kSpeedOfLight / r.frequency_hz;
   return lambda / (4 * kPi) * std::pow(10.0, budget_db / 20);
-}
-
-Electromagnetics::Electromagnetics(const std::vector<std::string>& names, const RadioConfig& radio,
-                                   const std::map<std::string, MaterialOverride>& overrides, bool rough)
-    : radio_(radio) {
-  for (const auto& name : names) {
-    auto it = overrides.find(name);
-    materials_.push_back(radio_material(name, radio.frequency_hz, it == overrides.end() ? MaterialOverride{} : it->second));
-    const auto c = slab_coefficients(materials_.back(), 1.0);
-    const double t = std::max(std::abs(c.t.te), std::abs(c.t.tm));
-    opaque_.push_back(t < 1e-12);
-    normal_loss_db_.push_back(t > 0 ? -20 * std::log10(t) : 1e300);
-    const double S = materials_.back().scattering.s;
-    keep_.push_back(rough ? std::sqrt(1 - S * S) : 1.0);
-  }
-}
-
-SlabCoefficients Electromagnetics::coefficients(std::uint16_t i, double cos_theta) const {
-  return slab_coefficients(materials_.at(i), std::clamp(cos_theta, 0.0, 1.0));
-}
-
-TeTm Electromagnetics::reflection(std::uint16_t i, double cos_theta) const {
-  return slab_reflection(materials_.at(i), std::clamp(cos_theta, 0.0, 1.0));
 }
 
 }  // namespace raysweep::tracer
