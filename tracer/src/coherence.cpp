@@ -255,7 +255,7 @@ struct Resolver {
     }
     for (const auto& seq : rc.near_misses)
       if (slots.faces(rc, seq, faces)) tries.emplace(faces, -1.0);
-    for (const auto& seq : fresh[pt.p]) tries.emplace(seq, -1.0);
+    for (const auto& seq : fresh[pt.slot]) tries.emplace(seq, -1.0);
     int blocked = 0;
     for (const auto& [seq, share] : tries) {
       ++res.candidates;
@@ -275,7 +275,7 @@ struct Resolver {
       }
       const FaceRef* f = face.empty() ? nullptr : &face[0];
       bool blocked = false;
-      auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[pt.i], plan.nodes[pt.j],
+      auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[pt.tx], plan.nodes[pt.rx],
                                            plan.scene.edges()[d.edge], pt.rays, d.reflected < 0 ? f : nullptr,
                                            d.reflected > 0 ? f : nullptr, 0, &blocked);
       if (!path) {
@@ -290,7 +290,7 @@ struct Resolver {
 
   double scattered(const PairTrace& pt, const PairRecall& rc, PairResult& res) const {
     double vanished = 0;
-    const Node &a = plan.nodes[pt.i], &b = plan.nodes[pt.j];
+    const Node &a = plan.nodes[pt.tx], &b = plan.nodes[pt.rx];
     for (const auto& s : rc.diffuse) {
       Path path;
       if (rescatter(plan.scene, slots, rc, s, a, b, plan.lambda, path)) res.paths.push_back(std::move(path));

@@ -151,14 +151,14 @@ class Diffraction final : public Mechanism {
 
   // The static edges both ends see.
   void add_static(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const {
-    const auto &ei = seen_[pair.i], &ej = seen_[pair.j];
+    const auto &ei = seen_[pair.tx], &ej = seen_[pair.rx];
     std::size_t x = 0, y = 0;
     while (x < ei.size() && y < ej.size()) {
       if (ei[x] < ej[y]) ++x;
       else if (ej[y] < ei[x]) ++y;
       else {
         ++res.candidates;
-        if (auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[pair.i], plan.nodes[pair.j],
+        if (auto path = compute_diffraction_path(plan.scene, plan.em, plan.nodes[pair.tx], plan.nodes[pair.rx],
                                                  plan.scene.edges()[ei[x]], pair.rays)) {
           path->origin.kind = PathOrigin::Kind::diffraction;
           path->origin.edge = ei[x];
@@ -172,7 +172,7 @@ class Diffraction final : public Mechanism {
 
   // One end's reflected edges that the other end sees.
   void add_reflected(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const {
-    const auto i = pair.i, j = pair.j;
+    const auto i = pair.tx, j = pair.rx;
     const auto sees = [&](std::uint32_t node, std::uint32_t k) { return (seen_bits_[node][k >> 6] >> (k & 63)) & 1; };
     for (int end = 0; end < 2; ++end) {
       const auto from = end == 0 ? i : j, other = end == 0 ? j : i;
@@ -201,7 +201,7 @@ class Diffraction final : public Mechanism {
   // 1.0 r1 on: the two model one field and must not add.
   void add_vehicle_edges(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const {
     const auto& cfg = plan.cfg;
-    const auto &ni = plan.nodes[pair.i], &nj = plan.nodes[pair.j];
+    const auto &ni = plan.nodes[pair.tx], &nj = plan.nodes[pair.rx];
     const double lambda = plan.lambda;
     const bool knife = cfg.vehicle_diffraction && res.los_class != LosClass::NLOS;
     const double onset = -kKnifeEdgeOnset / std::sqrt(2.0);
@@ -210,7 +210,7 @@ class Diffraction final : public Mechanism {
     // The floor: vehicle_edge_floor_db below the direct path's free-space power.
     const double d = norm(nj.position - ni.position);
     const double floor = std::pow(lambda / (4 * kPi * d), 2) * std::pow(10.0, -cfg.vehicle_edge_floor_db / 10);
-    const auto &ei = vehicle_edges_seen_[pair.i], &ej = vehicle_edges_seen_[pair.j];
+    const auto &ei = vehicle_edges_seen_[pair.tx], &ej = vehicle_edges_seen_[pair.rx];
     std::size_t x = 0, y = 0;
     while (x < ei.size() && y < ej.size()) {
       if (ei[x].k < ej[y].k) ++x;

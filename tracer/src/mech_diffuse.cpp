@@ -29,8 +29,8 @@ class Diffuse final : public Mechanism {
 
   void add_paths(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const override {
     const std::size_t first = res.paths.size();
-    if (tiles_) tiles_->pair_paths(pair.i, pair.j, 1.0 / plan.radio.bandwidth_hz, res.paths);
-    if (gathered_) add_gathered(plan, (*gathered_)[pair.p], res);
+    if (tiles_) tiles_->pair_paths(pair.tx, pair.rx, 1.0 / plan.radio.bandwidth_hz, res.paths);
+    if (gathered_) add_gathered(plan, (*gathered_)[pair.slot], res);
     for (std::size_t q = first; q < res.paths.size(); ++q) res.paths[q].origin.kind = PathOrigin::Kind::diffuse;
   }
 

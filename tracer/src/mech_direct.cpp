@@ -1,5 +1,5 @@
 // The direct path, with the vehicles in its first Fresnel zone as knife
-// edges (ITU-R P.526, Deygout: tracer/fresnel.hpp).
+// edges (ITU-R P.526, Deygout: tracer/src/fresnel_zone.hpp).
 #include <cmath>
 
 #include "exact_path.hpp"
@@ -14,7 +14,7 @@ class Direct final : public Mechanism {
   void prepare(SnapshotPlan&, SnapshotStats&) override {}
 
   void add_paths(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const override {
-    const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+    const Node &a = plan.nodes[pair.tx], &b = plan.nodes[pair.rx];
     ++res.candidates;
     bool over = false;
     if (auto path = compute_path(plan.scene, plan.em, plan.cfg, a, b, {}, &over, pair.rays)) {
@@ -35,7 +35,7 @@ class Direct final : public Mechanism {
   // attenuated; when it also crosses their windows, the stronger of the two
   // is kept.
   static void add_knife_edges(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) {
-    const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+    const Node &a = plan.nodes[pair.tx], &b = plan.nodes[pair.rx];
     const auto ke = plan.obstacles.vehicle_knife_edges(a.position, b.position, plan.lambda, a.vehicle, b.vehicle);
     if (!(ke.loss_db > 0)) return;
     res.vehicle_loss_db = ke.loss_db;

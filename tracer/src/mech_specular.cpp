@@ -116,7 +116,7 @@ void beam_search(const SnapshotPlan& plan, ShootPass& pass, std::vector<Sequence
 // unfolded path's first zone (continuous as a car enters a leg).
 void add_knife_edges(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
                      Path& path) {
-  const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+  const Node &a = plan.nodes[pair.tx], &b = plan.nodes[pair.rx];
   std::vector<Vec3> points{a.position};
   std::vector<int> host{-1};
   std::size_t q = 0;
@@ -143,7 +143,7 @@ void add_knife_edges(const SnapshotPlan& plan, const PairTrace& pair, const std:
 bool sequence_path(const SnapshotPlan& plan, const PairTrace& pair, const std::vector<FaceRef>& faces,
                    PairResult& res, int* blocked) {
   const auto& cfg = plan.cfg;
-  const Node &a = plan.nodes[pair.i], &b = plan.nodes[pair.j];
+  const Node &a = plan.nodes[pair.tx], &b = plan.nodes[pair.rx];
   bool over = false;
   std::optional<Path> path;
   if (!(cfg.vehicle_diffraction && cfg.vehicle_diffraction_reflected) || faces.empty()) {
@@ -193,7 +193,7 @@ class Specular final : public Mechanism {
   }
 
   void add_paths(const SnapshotPlan& plan, const PairTrace& pair, PairResult& res) const override {
-    const auto& candidates = candidates_[pair.p];
+    const auto& candidates = candidates_[pair.slot];
     int blocked = 0;
     for (const auto& faces : candidates)
       if (!sequence_path(plan, pair, faces, res, &blocked) && blocked == kVehicleBlocked)

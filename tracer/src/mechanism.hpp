@@ -15,8 +15,8 @@ namespace raysweep::tracer {
 // One pair at work: its ends, its slot in the plan and the direct line's
 // labels, which the direct and diffraction mechanisms read.
 struct PairTrace {
-  std::size_t p = 0;           // slot in SnapshotPlan::pairs
-  std::uint32_t i = 0, j = 0;  // i < j
+  std::size_t slot = 0;          // in SnapshotPlan::pairs
+  std::uint32_t tx = 0, rx = 0;  // node indices, tx < rx (PairResult's)
   FresnelObstruction zone;     // the direct line's first Fresnel zone
   std::uint64_t* rays = nullptr;  // the thread's ray counter
 };

@@ -8,7 +8,7 @@
 #include <optional>
 
 #include "diffraction_path.hpp"
-#include "fresnel.hpp"
+#include "fresnel_zone.hpp"
 #include "image_search.hpp"
 #include "tracer/em/antenna.hpp"
 

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "fresnel.hpp"
+#include "fresnel_zone.hpp"
 #include "image_search.hpp"
 #include "shoot.hpp"
 #include "tracer/solver.hpp"

@@ -101,11 +101,11 @@ void assemble_paths(const TracerConfig& cfg, PairResult& res) {
 
 void label_pair(const SnapshotPlan& plan, PairTrace& pair, PairResult& res) {
   const auto& nodes = plan.nodes;
-  res.tx = pair.i;
-  res.rx = pair.j;
-  const Vec3 a = nodes[pair.i].position, b = nodes[pair.j].position;
+  res.tx = pair.tx;
+  res.rx = pair.rx;
+  const Vec3 a = nodes[pair.tx].position, b = nodes[pair.rx].position;
   res.los_class = classify_los(plan.scene, a, b, res.blockers, pair.rays);
-  pair.zone = plan.obstacles.between(a, b, plan.lambda, nodes[pair.i].vehicle, nodes[pair.j].vehicle);
+  pair.zone = plan.obstacles.between(a, b, plan.lambda, nodes[pair.tx].vehicle, nodes[pair.rx].vehicle);
   res.fresnel_class = fresnel_class(res.los_class, pair.zone);
   res.fresnel_clearance = pair.zone.clearance;
 }

@@ -138,7 +138,7 @@ struct TracerConfig {
   // ground bounce over a roof edge, a wall's echo round a corner).
   bool diffraction_reflection = true;
   // Vehicles in the first Fresnel zone of the direct path attenuate it by
-  // ITU-R P.526's knife-edge loss (Deygout for several: tracer/fresnel.hpp);
+  // ITU-R P.526's knife-edge loss (Deygout for several: tracer/src/fresnel_zone.hpp);
   // a direct ray only vehicles block survives, attenuated.
   bool vehicle_diffraction = true;
   // With vehicle_diffraction, the same on every specular path: each leg's

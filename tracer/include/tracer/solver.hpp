@@ -44,7 +44,7 @@ struct PairResult {
   std::uint32_t tx = 0, rx = 0;  // node indices, tx < rx
   LosClass los_class = LosClass::LOS;   // geometric: what the direct segment crosses
   std::vector<std::uint32_t> blockers;  // objects on the direct segment (sorted, unique)
-  // The label by the first Fresnel zone (tracer/fresnel.hpp): an obstacle
+  // The label by the first Fresnel zone (tracer/src/fresnel_zone.hpp): an obstacle
   // within 0.6 F1 of the direct line counts; the worst obstacle's clearance
   // h / r1 (negative: the line crosses it), capped at 1.
   LosClass fresnel_class = LosClass::LOS;

@@ -131,7 +131,7 @@ class TraceScene {
   void face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3>>& out) const;
   // Static faces that are ground: horizontal (|n_z| > 0.999) with a
   // bounding radius >= 25 m (the ground, large squares). Their reflection is
-  // a path; they do not obstruct (tracer/fresnel) and pair with every
+  // a path; they do not obstruct (tracer/src/fresnel_zone.hpp) and pair with every
   // vehicle in the image search.
   bool is_ground(std::uint32_t static_face) const;
   // Whether static face g has a vertex strictly on the `side` (> 0: front,

@@ -1,4 +1,4 @@
-#include "fresnel.hpp"
+#include "fresnel_zone.hpp"
 
 #include "tracer/em/constants.hpp"
 

@@ -75,7 +75,7 @@ class FresnelObstacles {
   FresnelObstruction between(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1, int skip_b = -1) const;
   // The multiple knife-edge loss of the vehicles (static objects aside) on
   // the line a -> b; each vehicle is one knife edge, at the point its
-  // outline must be cleared (tracer/fresnel.cpp).
+  // outline must be cleared (tracer/src/fresnel_zone.cpp).
   KnifeEdges vehicle_knife_edges(const Vec3& a, const Vec3& b, double lambda, int skip_a = -1,
                                  int skip_b = -1) const;
 
