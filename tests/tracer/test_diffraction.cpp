@@ -22,7 +22,9 @@
 
 #include "closed_forms.hpp"
 #include "em/utd.hpp"
-#include "image_search.hpp"
+#include "reflected_edges.hpp"
+#include "search/face_index.hpp"
+#include "search/visibility.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;

@@ -12,8 +12,8 @@
 #include <tuple>
 #include <unordered_map>
 
-#include "image_search.hpp"
 #include "mechanism.hpp"
+#include "search/image_search.hpp"
 
 namespace raysweep::tracer {
 
@@ -314,7 +314,7 @@ std::vector<std::vector<std::vector<FaceRef>>> frame_candidates(const SnapshotPl
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t i) {
     if (!plan.partners[i].empty())
       image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], std::min(cfg.max_depth, 3), found[i],
-                       nullptr, cfg.vehicle_multi_bounce, false, false);
+                       {.multi_bounce = cfg.vehicle_multi_bounce, .ground_order3 = false, .static_pairs = false});
   });
   for (std::uint32_t i = 0; i < plan.n; ++i)
     for (auto& c : found[i]) {

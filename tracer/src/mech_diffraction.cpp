@@ -11,6 +11,8 @@
 
 #include "diffraction_path.hpp"
 #include "mechanism.hpp"
+#include "reflected_edges.hpp"
+#include "search/visibility.hpp"
 
 namespace raysweep::tracer {
 

@@ -11,6 +11,9 @@
 
 #include "exact_path.hpp"
 #include "mechanism.hpp"
+#include "search/beam_search.hpp"
+#include "search/image_search.hpp"
+#include "search/visibility.hpp"
 
 namespace raysweep::tracer {
 
@@ -71,8 +74,9 @@ void image_search(const SnapshotPlan& plan, std::vector<Sequences>& candidates, 
       slab_bounds(plan.scene, faces, plan.nodes, searching, cfg.refraction ? cfg.max_transmissions : 0);
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t i) {
     if (plan.partners[i].empty()) return;
-    image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], std::min(cfg.max_depth, 3), found[i], &st[i],
-                     cfg.vehicle_multi_bounce, cfg.ground_order3, true, &slabs);
+    image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], std::min(cfg.max_depth, 3), found[i],
+                     {.multi_bounce = cfg.vehicle_multi_bounce, .ground_order3 = cfg.ground_order3, .slabs = &slabs},
+                     &st[i]);
   });
   add_search_stats(st, stats);
   file_by_pair(plan, found, candidates);
@@ -95,8 +99,8 @@ void beam_search(const SnapshotPlan& plan, ShootPass& pass, std::vector<Sequence
     small_face_beams(faces, plan.nodes[i].position, b);
     std::sort(b.begin(), b.end());
     b.erase(std::unique(b.begin(), b.end()), b.end());
-    beam_vehicle_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], b, found[i], &st[i],
-                            cfg.ground_order3 && cfg.max_depth >= 3);
+    beam_vehicle_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], b, found[i],
+                            {.with_ground = cfg.ground_order3 && cfg.max_depth >= 3}, &st[i]);
     if (!triple_search) return;
     auto& bp = pass.beam_pairs[i];
     small_face_pairs(plan.scene, faces, plan.nodes[i].position, bp);

@@ -9,7 +9,9 @@
 
 #include "diffraction_path.hpp"
 #include "fresnel_zone.hpp"
-#include "image_search.hpp"
+#include "reflected_edges.hpp"
+#include "search/image_search.hpp"
+#include "search/visibility.hpp"
 #include "tracer/em/antenna.hpp"
 
 namespace raysweep::tracer {

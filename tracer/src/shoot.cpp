@@ -11,6 +11,8 @@
 
 #include "em/field.hpp"
 #include "em/scattering.hpp"
+#include "search/image_search.hpp"
+#include "search/visibility.hpp"
 #include "snapshot_plan.hpp"
 
 namespace raysweep::tracer {

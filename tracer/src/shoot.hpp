@@ -11,7 +11,8 @@
 #include <utility>
 #include <vector>
 
-#include "image_search.hpp"
+#include "search/beam_search.hpp"
+#include "search/face_index.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {

@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "fresnel_zone.hpp"
-#include "image_search.hpp"
+#include "search/face_index.hpp"
 #include "shoot.hpp"
 #include "tracer/solver.hpp"
 
