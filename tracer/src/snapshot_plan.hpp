@@ -12,7 +12,7 @@
 
 #include "fresnel_zone.hpp"
 #include "search/face_index.hpp"
-#include "shoot.hpp"
+#include "shoot/shoot.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {

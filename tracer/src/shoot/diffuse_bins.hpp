@@ -1,37 +1,17 @@
-// Shoot-and-bounce: rays from every source over a Fibonacci lattice. One
-// pass serves three consumers: face sequences passing near the other nodes
-// (specular candidates, refined exactly by the image method), the beams of
-// wall-vehicle and wall-wall combinations the image search enumerates, and
-// the diffuse power gathered at each hit (diffuse_integration rays/hybrid).
+// What the rays' diffuse gathering fills and the diffuse mechanism reads:
+// the contributions binned per receiver, object and delay (DiffuseKey,
+// DiffuseAcc), and what a source scatters towards (DiffuseTargets).
 #pragma once
 
 #include <array>
+#include <compare>
 #include <cstdint>
-#include <map>
 #include <utility>
 #include <vector>
 
-#include "search/beam_search.hpp"
-#include "search/face_index.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {
-
-struct SnapshotPlan;
-
-// A face sequence a ray of one source proposed for the pair (source, other).
-struct CandidateKey {
-  std::uint32_t other;
-  std::vector<FaceRef> faces;
-  bool operator==(const CandidateKey&) const = default;
-};
-struct CandidateHash {
-  std::size_t operator()(const CandidateKey& k) const {
-    std::size_t h = k.other * 0x9E3779B97F4A7C15ull;
-    for (const auto& f : k.faces) h = (h ^ (std::size_t(f.instance) << 32 ^ f.face)) * 0x100000001B3ull;
-    return h;
-  }
-};
 
 // Diffuse contributions of one source's rays, binned per receiver,
 // scattering object (a building, the ground, a vehicle) and delay bin of
@@ -118,36 +98,5 @@ struct DiffuseTargets {
 
 // The roulette's threshold for `cfg` (TracerConfig::diffuse_roulette_db).
 double roulette_power(const TracerConfig& cfg, const RadioConfig& radio);
-
-// Lattice rays per shooting task: sums over a source's rays run chunk by
-// chunk in index order (trace_pairs and diffuse_power alike), so they do not
-// depend on the thread count and both give the same numbers.
-constexpr std::size_t kShootChunk = 256;
-
-// Shoot-and-bounce from node `src`: face sequences that pass near other nodes
-// and, with diffuse scattering on, the scattered power at each hit.
-void shoot_from(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& cfg,
-                const std::vector<Node>& nodes, std::uint32_t src, const std::vector<Vec3>& lattice,
-                std::size_t begin, std::size_t end, std::vector<CandidateKey>& out, std::uint64_t& rays,
-                const DiffuseTargets* diffuse, DiffuseBins* diffuse_out, const ImageFaces* beam_faces = nullptr,
-                std::vector<BeamVehicle>* beams = nullptr, std::vector<BeamPair>* beam_pairs = nullptr);
-
-// What the shoot-and-bounce pass of one snapshot found, merged per pair in
-// task order (the same sums for any thread count).
-struct ShootPass {
-  // Per pair: face sequences the rays proposed (not those the image search
-  // enumerates completely), reversed to run from the pair's lower end.
-  std::vector<std::vector<std::vector<FaceRef>>> candidates;
-  // Per pair: the diffuse records gathered by both ends' rays.
-  std::vector<std::map<DiffuseKey, DiffuseAcc>> diffuse;
-  // Per node: the beams its rays lit (for the image search's beam stages).
-  std::vector<std::vector<BeamVehicle>> beams;
-  std::vector<std::vector<BeamPair>> beam_pairs;
-  std::uint64_t rays = 0;
-  double seconds = 0;  // wall
-};
-
-// Runs the pass for the plan's sources (SnapshotPlan::shoot() runs it once).
-ShootPass run_shoot_pass(const SnapshotPlan& plan);
 
 }  // namespace raysweep::tracer
