@@ -340,54 +340,72 @@ struct Bin {
 
 }  // namespace
 
-void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const {
-  const double lambda = em_.wavelength();
-  std::vector<Bin> bins;
-  std::size_t last = 0;
-  auto add = [&](const View& x, const View& y, double area, const Vec3& point) {
-    if (dot(x.n_front, y.n_front) <= 0) return;  // the ends on opposite sides of the face
-    // Both ways, averaged: the sum is the same whichever end is `a`.
-    const double p = 0.5 * (one_way(x, y, area, lambda) + one_way(y, x, area, lambda));
-    if (!(p > 0)) return;
-    const double tau = (x.r + y.r) / kSpeedOfLight;
-    const auto bin = static_cast<std::int64_t>(std::floor(tau / bin_s));
-    if (last >= bins.size() || bins[last].object != x.object || bins[last].bin != bin) {
-      last = bins.size();
-      for (std::size_t q = 0; q < bins.size(); ++q)
-        if (bins[q].object == x.object && bins[q].bin == bin) last = q;
-      if (last == bins.size()) {
-        bins.push_back(Bin{});
-        bins.back().object = x.object;
-        bins.back().bin = bin;
-        bins.back().material = x.material;
+// pair_paths' walk, depth first through the tree. A node's visibility is
+// decided at its cut; below it, tiles inherit it (`seen_a`, `seen_b`).
+// Where an end refined, its walk visited the children too, so the next
+// entry of its list is the tile this walk reaches (both go in index order).
+class DiffuseTiles::PairWalk {
+ public:
+  PairWalk(const DiffuseTiles& tiles, std::uint32_t a, std::uint32_t b, double bin_s)
+      : tiles_(tiles),
+        a_(a),
+        b_(b),
+        bin_s_(bin_s),
+        lambda_(tiles.em_.wavelength()),
+        tree_(*tiles.tree_),
+        sa_(tiles.sight_[a]),
+        sb_(tiles.sight_[b]) {}
+
+  void run() {
+    const Tree& T = tree_;
+    for (auto it = T.roots.rbegin(); it != T.roots.rend(); ++it) stack_.push_back({*it, false, false});
+    while (!stack_.empty()) {
+      const Item item = stack_.back();
+      stack_.pop_back();
+      const std::uint32_t t = item.t;
+      const Visit* visit_a = item.seen_a ? nullptr : &take(sa_, ia_, t);
+      const Visit* visit_b = item.seen_b ? nullptr : &take(sb_, ib_, t);
+      const std::int32_t slot_a = visit_a ? visit_a->state : kBelow, slot_b = visit_b ? visit_b->state : kBelow;
+      const bool seen_a = item.seen_a || slot_a >= 0, seen_b = item.seen_b || slot_b >= 0;
+      if ((!seen_a && slot_a != kRefine) || (!seen_b && slot_b != kRefine)) {  // hidden from an end
+        if (slot_a == kRefine) skip(sa_, ia_, visit_a->end);
+        if (slot_b == kRefine) skip(sb_, ib_, visit_b->end);
+        continue;
       }
+      if (!seen_a || !seen_b) {
+        stack_.push_back({(slot_a == kRefine ? visit_a : visit_b)->second, seen_a, seen_b});
+        stack_.push_back({t + 1, seen_a, seen_b});
+        continue;
+      }
+      both_see(t, slot_a, slot_b);
     }
-    Bin& B = bins[last];
-    B.power += p;
-    B.tau += p * tau;
-    B.point = B.point + p * point;
-    // x is a's view, y b's: departure from a, arrival at b pointing back
-    // towards the tile.
-    B.departure = B.departure + p * x.k;
-    B.arrival = B.arrival + p * y.k;
-    const double dl = -(dot(x.k, x.node->velocity) + dot(y.k, y.node->velocity));
-    B.doppler += p * (-dl / lambda);
+  }
+
+  // The bins as diffuse paths, appended to `out`.
+  void emit(std::vector<Path>& out) const {
+    for (const Bin& B : bins_) {
+      if (!(B.power > 0)) continue;
+      Path path = diffuse_record(B.power, B.tau, B.departure, B.arrival, B.doppler, lambda_);
+      const double w = 1.0 / B.power;
+      path.interactions.push_back(Interaction{InteractionType::diffuse, B.object, B.material, w * B.point});
+      out.push_back(std::move(path));
+    }
+  }
+
+ private:
+  struct Item {
+    std::uint32_t t;
+    bool seen_a, seen_b;
   };
-  const Tree& T = *tree_;
-  const Sight& sa = sight_[a];
-  const Sight& sb = sight_[b];
-  // Depth first through the tree. A node's visibility is decided at its
-  // cut; below it, tiles inherit it (`seen_a`, `seen_b`). Where an end
-  // refined, its walk visited the children too, so the next entry of its
-  // list is the tile this walk reaches (both go in index order).
-  std::size_t ia = 0, ib = 0;
-  auto take = [&](const Sight& s, std::size_t& i, std::uint32_t t) -> const Visit& {
+
+  // The next of an end's visits, which must be tile t's.
+  static const Visit& take(const Sight& s, std::size_t& i, std::uint32_t t) {
     if (i >= s.visits.size() || s.visits[i].node != t) throw std::logic_error("diffuse tiles: walks out of step");
     return s.visits[i++];
-  };
+  }
   // Past an end's visits below t (the other end does not see t): a
   // galloping search, as most skips are short.
-  auto skip = [&](const Sight& s, std::size_t& i, std::uint32_t e) {
+  static void skip(const Sight& s, std::size_t& i, std::uint32_t e) {
     const std::size_t n = s.visits.size();
     std::size_t lo = i, step = 1;
     while (lo + step < n && s.visits[lo + step].node < e) {
@@ -399,38 +417,15 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     i = static_cast<std::size_t>(
         std::lower_bound(first, last, e, [](const Visit& v, std::uint32_t x) { return v.node < x; }) -
         s.visits.begin());
-  };
-  struct Item {
-    std::uint32_t t;
-    bool seen_a, seen_b;
-  };
-  std::vector<Item> stack;
-  for (auto it = T.roots.rbegin(); it != T.roots.rend(); ++it) stack.push_back({*it, false, false});
-  std::vector<std::pair<std::array<Vec3, 3>, int>> finer;
-  View ca, cb;  // views computed here: view() sets every field add() reads
-  while (!stack.empty()) {
-    const Item item = stack.back();
-    stack.pop_back();
-    const std::uint32_t t = item.t;
-    const Visit* visit_a = item.seen_a ? nullptr : &take(sa, ia, t);
-    const Visit* visit_b = item.seen_b ? nullptr : &take(sb, ib, t);
-    const std::int32_t slot_a = visit_a ? visit_a->state : kBelow, slot_b = visit_b ? visit_b->state : kBelow;
-    const bool seen_a = item.seen_a || slot_a >= 0, seen_b = item.seen_b || slot_b >= 0;
-    if ((!seen_a && slot_a != kRefine) || (!seen_b && slot_b != kRefine)) {  // hidden from an end
-      if (slot_a == kRefine) skip(sa, ia, visit_a->end);
-      if (slot_b == kRefine) skip(sb, ib, visit_b->end);
-      continue;
-    }
-    if (!seen_a || !seen_b) {
-      stack.push_back({(slot_a == kRefine ? visit_a : visit_b)->second, seen_a, seen_b});
-      stack.push_back({t + 1, seen_a, seen_b});
-      continue;
-    }
-    // Both ends see this tile (so neither list goes below it): integrate
-    // it, finer where an end is close. Its record from an end's view, or
-    // from the tree where both inherited it.
-    const View* va = slot_a >= 0 ? &sa.views[static_cast<std::size_t>(slot_a)] : nullptr;
-    const View* vb = slot_b >= 0 ? &sb.views[static_cast<std::size_t>(slot_b)] : nullptr;
+  }
+
+  // Both ends see tile t (so neither list goes below it): integrate it,
+  // finer where an end is close. Its record from an end's view, or from
+  // the tree where both inherited it.
+  void both_see(std::uint32_t t, std::int32_t slot_a, std::int32_t slot_b) {
+    const Tree& T = tree_;
+    const View* va = slot_a >= 0 ? &sa_.views[static_cast<std::size_t>(slot_a)] : nullptr;
+    const View* vb = slot_b >= 0 ? &sb_.views[static_cast<std::size_t>(slot_b)] : nullptr;
     View::Record rec;
     if (va || vb) {
       rec = (va ? va : vb)->record;
@@ -441,45 +436,92 @@ void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, st
     const Vec3& centre = rec.centre;
     const std::uint32_t face = rec.face;
     if (!va) {
-      if (!view(a, centre, face, ca)) continue;
-      va = &ca;
+      if (!tiles_.view(a_, centre, face, ca_)) return;
+      va = &ca_;
     }
     if (!vb) {
-      if (!view(b, centre, face, cb)) continue;
-      vb = &cb;
+      if (!tiles_.view(b_, centre, face, cb_)) return;
+      vb = &cb_;
     }
-    if (rec.size <= ratio_ * std::min(va->r, vb->r)) {
+    if (rec.size <= tiles_.ratio_ * std::min(va->r, vb->r)) {
       add(*va, *vb, rec.area, centre);
-      continue;
+      return;
     }
     if (rec.end != t + 1) {  // not a leaf
-      stack.push_back({rec.second, true, true});
-      stack.push_back({t + 1, true, true});
-      continue;
+      stack_.push_back({rec.second, true, true});
+      stack_.push_back({t + 1, true, true});
+      return;
     }
-    // Below the leaves: bisected for this pair only.
-    finer.assign(1, {T.v[t], 0});
-    while (!finer.empty()) {
-      const auto [tri, depth] = finer.back();
-      finer.pop_back();
+    below_leaf(t, face);
+  }
+
+  // Below the leaves: bisected for this pair only.
+  void below_leaf(std::uint32_t t, std::uint32_t face) {
+    finer_.assign(1, {tree_.v[t], 0});
+    while (!finer_.empty()) {
+      const auto [tri, depth] = finer_.back();
+      finer_.pop_back();
       const SurfaceTile child = make_tile(tri, face);
-      if (!view(a, child.centre, face, ca) || !view(b, child.centre, face, cb)) continue;
-      if (depth < 12 && child.size > ratio_ * std::min(ca.r, cb.r)) {
+      if (!tiles_.view(a_, child.centre, face, ca_) || !tiles_.view(b_, child.centre, face, cb_)) continue;
+      if (depth < 12 && child.size > tiles_.ratio_ * std::min(ca_.r, cb_.r)) {
         const auto halves = bisect(tri);
-        finer.push_back({halves[1], depth + 1});
-        finer.push_back({halves[0], depth + 1});
+        finer_.push_back({halves[1], depth + 1});
+        finer_.push_back({halves[0], depth + 1});
         continue;
       }
-      add(ca, cb, child.area, child.centre);
+      add(ca_, cb_, child.area, child.centre);
     }
   }
-  for (const Bin& B : bins) {
-    if (!(B.power > 0)) continue;
-    Path path = diffuse_record(B.power, B.tau, B.departure, B.arrival, B.doppler, lambda);
-    const double w = 1.0 / B.power;
-    path.interactions.push_back(Interaction{InteractionType::diffuse, B.object, B.material, w * B.point});
-    out.push_back(std::move(path));
+
+  // Tile (area, point) as x (a's view) and y (b's) see it, into its bin.
+  void add(const View& x, const View& y, double area, const Vec3& point) {
+    if (dot(x.n_front, y.n_front) <= 0) return;  // the ends on opposite sides of the face
+    // Both ways, averaged: the sum is the same whichever end is `a`.
+    const double p = 0.5 * (one_way(x, y, area, lambda_) + one_way(y, x, area, lambda_));
+    if (!(p > 0)) return;
+    const double tau = (x.r + y.r) / kSpeedOfLight;
+    const auto bin = static_cast<std::int64_t>(std::floor(tau / bin_s_));
+    if (last_ >= bins_.size() || bins_[last_].object != x.object || bins_[last_].bin != bin) {
+      last_ = bins_.size();
+      for (std::size_t q = 0; q < bins_.size(); ++q)
+        if (bins_[q].object == x.object && bins_[q].bin == bin) last_ = q;
+      if (last_ == bins_.size()) {
+        bins_.push_back(Bin{});
+        bins_.back().object = x.object;
+        bins_.back().bin = bin;
+        bins_.back().material = x.material;
+      }
+    }
+    Bin& B = bins_[last_];
+    B.power += p;
+    B.tau += p * tau;
+    B.point = B.point + p * point;
+    // x is a's view, y b's: departure from a, arrival at b pointing back
+    // towards the tile.
+    B.departure = B.departure + p * x.k;
+    B.arrival = B.arrival + p * y.k;
+    const double dl = -(dot(x.k, x.node->velocity) + dot(y.k, y.node->velocity));
+    B.doppler += p * (-dl / lambda_);
   }
+
+  const DiffuseTiles& tiles_;
+  const std::uint32_t a_, b_;
+  const double bin_s_, lambda_;
+  const Tree& tree_;
+  const Sight& sa_;
+  const Sight& sb_;
+  std::size_t ia_ = 0, ib_ = 0;  // the next of each end's visits
+  std::vector<Item> stack_;
+  std::vector<std::pair<std::array<Vec3, 3>, int>> finer_;
+  View ca_, cb_;  // views computed here: view() sets every field add() reads
+  std::vector<Bin> bins_;
+  std::size_t last_ = 0;  // the bin added to last
+};
+
+void DiffuseTiles::pair_paths(std::uint32_t a, std::uint32_t b, double bin_s, std::vector<Path>& out) const {
+  PairWalk walk(*this, a, b, bin_s);
+  walk.run();
+  walk.emit(out);
 }
 
 }  // namespace raysweep::tracer

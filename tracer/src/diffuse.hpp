@@ -61,6 +61,8 @@ class DiffuseTiles {
   struct Sight;  // one node's visibility cut through the tile tree
 
  private:
+  class PairWalk;  // pair_paths' walk through both ends' cuts
+
   // The part of the view that decides whether the node faces the tile.
   bool faces(std::uint32_t node, const Vec3& centre, std::uint32_t face, View& out) const;
   // The rest: the incident field and the lobe (after faces() held).
