@@ -12,7 +12,7 @@
 #include <tuple>
 #include <unordered_map>
 
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 #include "search/image_search.hpp"
 
 namespace raysweep::tracer {

@@ -11,7 +11,7 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 
 namespace raysweep::tracer {
 

@@ -9,7 +9,7 @@
 // and both labels (LoS class, Fresnel zone) are always computed afresh. A
 // diffuse record keeps its power and scattering point (moved with its
 // vehicle); its delay, phase, angles and Doppler follow its legs
-// (tracer/coherence.cpp).
+// (tracer/src/coherence.cpp).
 //
 // A recalled sequence that a vehicle now blocks, and a candidate the search
 // found blocked by a vehicle only (a near miss), are tried again every frame:

@@ -23,7 +23,7 @@ struct RadioConfig {
 
 enum class CandidateSearch {
   // Exact image search (every face at order 1, every pair of static faces
-  // at order 2: tracer/image_search.hpp) plus shoot-and-bounce for the rest
+  // at order 2: tracer/src/search/) plus shoot-and-bounce for the rest
   // (order-2 sequences touching a vehicle, orders >= 3). Default.
   image,
   sbr,        // shoot-and-bounce only, from every node over a Fibonacci lattice
@@ -36,7 +36,7 @@ enum class DiffuseIntegration {
   // reflections and through slabs; reciprocal in expectation only. Default.
   rays,
   // Deterministic: static surfaces cut into a tree of tiles
-  // (tracer/diffuse.hpp), visibility per node, midpoint rule per pair;
+  // (tracer/src/diffuse_tiles.hpp), visibility per node, midpoint rule per pair;
   // converged and bitwise reciprocal, first-order scattering only.
   tiles,
   // Both: the tiles for first-order scattering (source -> surface ->
@@ -58,12 +58,12 @@ struct TracerConfig {
   // Reception sphere radius = factor * angular ray spacing * unfolded length.
   // Candidates are refined exactly, so a generous sphere only costs time.
   double reception_radius_factor = 1.0;
-  // Vehicle bundles (tracer/shoot.cpp, docs/tracer.md): per source, rays
-  // aimed at each other vehicle that the lattice covers with fewer than
-  // vehicle_bundle_rays, and through each static face whose beam the
-  // lattice showed reaching one. Chains of two vehicles, or through one's
-  // cabin onto another, need a far vehicle hit densely, which 6144 rays
-  // over the sphere do not give.
+  // Vehicle bundles (tracer/src/shoot/vehicle_bundles.cpp, docs/tracer.md):
+  // per source, rays aimed at each other vehicle that the lattice covers
+  // with fewer than vehicle_bundle_rays, and through each static face whose
+  // beam the lattice showed reaching one. Chains of two vehicles, or
+  // through one's cabin onto another, need a far vehicle hit densely, which
+  // 6144 rays over the sphere do not give.
   bool vehicle_bundles = true;
   int vehicle_bundle_rays = 16;
   bool vehicle_bundles_via_faces = true;

@@ -1,6 +1,6 @@
 // One transmitter to many receiver points (a radio map's voxel centres),
 // beside the path solver (tracer/solver.hpp), with the transmitter's work
-// done once: its image sources (order 1 and 2, exact: tracer/image_search.hpp)
+// done once: its image sources (order 1 and 2, exact: tracer/src/search/)
 // are built once per batch of points and tested against the whole batch,
 // and the edges it can see the outside of are listed once.
 //

@@ -3,7 +3,7 @@
 // interactions) and the pair's LoS / NLoSv / NLoS labels.
 //
 // trace_pairs plans the pairs (which are in range, which nodes serve as
-// sources), lets each enabled mechanism (tracer/mechanism.hpp) prepare what
+// sources), lets each enabled mechanism (tracer/src/mechanisms/) prepare what
 // its pairs share, then per pair labels the direct line and collects the
 // mechanisms' paths in a fixed order: direct (vehicles as knife edges),
 // specular and refracted (candidates from the exact image search, the beams
@@ -73,7 +73,7 @@ struct SnapshotStats {
   std::uint64_t dropped_threshold = 0;
   std::uint64_t out_of_range_pairs = 0;
   std::uint64_t diffraction_paths = 0, diffuse_paths = 0;  // kept paths ending in those interactions
-  std::uint64_t image_sources = 0, image_tests = 0;         // exact image search (tracer/image_search.hpp)
+  std::uint64_t image_sources = 0, image_tests = 0;         // exact image search (tracer/src/search/)
   std::uint64_t diffuse_tiles = 0, diffuse_views = 0;       // surface tiles; (node, tile) pairs in sight
   // Where the time went (seconds). Stages that run one after the other are
   // wall-clock; the per-pair steps run on every thread at once and are

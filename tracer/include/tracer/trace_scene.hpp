@@ -117,7 +117,7 @@ class TraceScene {
   Vec3 velocity(const FaceRef& f) const;  // of the surface point (vehicle translation)
   std::size_t face_count(std::uint32_t instance) const;
 
-  // Face shape for the exact image search (tracer/image_search): whether a
+  // Face shape for the exact image search (tracer/src/search/): whether a
   // point near the face's plane projects inside one of its triangles, with
   // `tol` metres to spare at the borders (so the test never rejects a point
   // that the exact path's ray test would accept), and a bounding sphere.

@@ -1,12 +1,12 @@
 // Diffuse scattering (effective roughness): first-order scattering
-// integrated over surface tiles (tracer/diffuse.hpp) and / or the power the
-// shoot-and-bounce rays gathered at their hits (tracer/shoot.hpp), as one
-// record per scattering object and delay bin.
+// integrated over surface tiles (tracer/src/diffuse_tiles.hpp) and / or the
+// power the shoot-and-bounce rays gathered at their hits
+// (tracer/src/shoot/), as one record per scattering object and delay bin.
 #include <chrono>
 #include <optional>
 
-#include "diffuse.hpp"
-#include "mechanism.hpp"
+#include "diffuse_tiles.hpp"
+#include "mechanisms/mechanism.hpp"
 
 namespace raysweep::tracer {
 

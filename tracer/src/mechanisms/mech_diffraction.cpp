@@ -10,7 +10,7 @@
 #include <cmath>
 
 #include "diffraction_path.hpp"
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 #include "reflected_edges.hpp"
 #include "search/visibility.hpp"
 

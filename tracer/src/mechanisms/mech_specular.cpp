@@ -1,7 +1,7 @@
 // Specular reflections and refractions: candidate face sequences from the
 // exact image search, the beams the rays lit and the shoot-and-bounce rays
 // (or every sequence, exhaustive), each refined by the image method into
-// the exact path (tracer/exact_path.hpp).
+// the exact path (tracer/src/exact_path.hpp).
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -10,7 +10,7 @@
 #include <optional>
 
 #include "exact_path.hpp"
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 #include "search/beam_search.hpp"
 #include "search/image_search.hpp"
 #include "search/visibility.hpp"
@@ -61,7 +61,7 @@ void add_search_stats(const std::vector<ImageSearchStats>& st, SnapshotStats& st
 }
 
 // Order 1 on every face, order 2 on static pairs, the vehicles' own
-// multi-bounce tables and the ground's order 3: tracer/image_search.hpp.
+// multi-bounce tables and the ground's order 3: tracer/src/search/image_search.hpp.
 void image_search(const SnapshotPlan& plan, std::vector<Sequences>& candidates, SnapshotStats& stats) {
   const auto t0 = std::chrono::steady_clock::now();
   const auto& cfg = plan.cfg;

@@ -1,4 +1,4 @@
-#include "diffuse.hpp"
+#include "diffuse_tiles.hpp"
 
 #include <tbb/parallel_for.h>
 

@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "exact_path.hpp"
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 
 namespace raysweep::tracer {
 

@@ -1,4 +1,4 @@
-#include "mechanism.hpp"
+#include "mechanisms/mechanism.hpp"
 
 namespace raysweep::tracer {
 
