@@ -79,7 +79,7 @@ json json_num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 std::string setting_label(int rays, int depth) { return fmt::format("r{} d{}", rays, depth); }
 
-std::string mm(double m) { return fmt::format("{:g}m", m); }
+std::string metres_label(double m) { return fmt::format("{:g}m", m); }
 
 }  // namespace
 
@@ -653,10 +653,11 @@ void add_scene_variants(const GridBase& b, const GridAxes& axes, int coarsest, T
     // row would only chart the timer's noise (on the ring road's box
     // buildings it "dominated" the default by 1 % of time).
     if (scenes.scene_for(m).stats.objects_simplified == 0) {
-      spdlog::info("tradeoff: static {} leaves every object as it is: the default's scene, not charted", mm(m));
+      spdlog::info("tradeoff: static {} leaves every object as it is: the default's scene, not charted",
+                   metres_label(m));
       continue;
     }
-    auto s = b.variant("static " + mm(m));
+    auto s = b.variant("static " + metres_label(m));
     s.simplify_m = m;
     grid.push_back(s);
   }
