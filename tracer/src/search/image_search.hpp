@@ -19,8 +19,8 @@
 // Any other static face with any vehicle (a wall's echo off a car, the
 // antenna's own included) is enumerated the same way for the (face, vehicle)
 // combinations the shoot-and-bounce rays' beams reach (BeamVehicle,
-// search/beam_search.hpp):
-// the rays sample a wall densely where they miss a small, far car's faces.
+// search/beam_search.hpp): the rays sample a wall densely where they miss a
+// small, far car's faces.
 //   order 3, a wall, a vehicle and the ground in any order: from the same
 //            (face, vehicle) combinations, the ground before or after the
 //            vehicle (BeamVehicle);
@@ -35,7 +35,7 @@
 //            vehicle_bounce_sequences), each decided by images and on-face
 //            tests.
 // Other vehicle-vehicle sequences and orders >= 3 come from shoot-and-bounce
-// (solver.cpp), merged with these.
+// (tracer/src/shoot/), merged with these.
 #pragma once
 
 #include <cstdint>
