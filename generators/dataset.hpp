@@ -54,7 +54,7 @@ struct LinkRecord {
   float rms_delay_spread_s = 0;
   std::uint32_t path_count = 0;  // this link's paths follow the previous links' paths in FrameRecord::paths
   std::uint32_t paths_below_threshold = 0;  // found but dropped: tracer.path_threshold_db below the strongest
-  std::uint8_t los_class_fresnel = 0;  // the label by the first Fresnel zone (tracer/fresnel.hpp)
+  std::uint8_t los_class_fresnel = 0;  // the label by the first Fresnel zone (tracer/src/fresnel_zone.hpp)
   float fresnel_clearance = 1;         // worst obstacle's h / r1 (negative: crossed), capped at 1
   float vehicle_loss_db = 0;           // vehicles' knife-edge loss on the direct path (>= 0)
   // Summaries of every path (tracer/channel_summary.hpp), kept at every store level.

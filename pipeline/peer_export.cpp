@@ -7,7 +7,7 @@
 #include <tuple>
 
 #include "pipeline/staged_output.hpp"
-#include "tracer/electromagnetics.hpp"
+#include "tracer/em/coefficients.hpp"
 
 namespace raysweep::pipeline {
 

@@ -16,7 +16,6 @@
 #include <sstream>
 
 #include "generators/dataset_reader.hpp"
-#include "generators/radiomap_solver.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"
 #include "pipeline/preview.hpp"
@@ -30,6 +29,7 @@
 #include "pipeline/sweep_stage.hpp"
 #include "pipeline/trace_stage.hpp"
 #include "pipeline/trace_inputs.hpp"
+#include "tracer/radiomap_solver.hpp"
 #include "tracer/tracer.hpp"
 
 namespace raysweep::pipeline {
@@ -157,7 +157,7 @@ OpenVoxels open_voxels(const MapRegion& region, long layers, const RadioMapSetti
   auto centre = [&](const Voxel& x) { return Vec3{x[0] * v, x[1] * v, s.z_min_m + x[2] * v}; };
   std::vector<unsigned char> open(candidates.size(), 0);
   tbb::parallel_for(std::size_t{0}, candidates.size(),
-                    [&](std::size_t n) { open[n] = !generators::inside_static(scene, centre(candidates[n])); });
+                    [&](std::size_t n) { open[n] = !tracer::inside_static(scene, centre(candidates[n])); });
   OpenVoxels o;
   for (std::size_t n = 0; n < candidates.size(); ++n)
     if (open[n]) {
@@ -214,10 +214,10 @@ struct TxMaps {
 
 // The path gain at every voxel centre from `tx`, diffuse scattering added
 // where `diffuse` has samples.
-std::vector<generators::RadioMapPointResult> solve_tx(const tracer::TraceScene& scene, const tracer::Node& node,
-                                                const OpenVoxels& o, const DiffuseSamples* diffuse,
-                                                const TraceSettings& trace, generators::RadioMapSolveStats& st) {
-  auto res = generators::solve_points(scene, node, o.points, trace.tracer, trace.radio, &st);
+std::vector<tracer::RadioMapPointResult> solve_tx(const tracer::TraceScene& scene, const tracer::Node& node,
+                                                  const OpenVoxels& o, const DiffuseSamples* diffuse,
+                                                  const TraceSettings& trace, tracer::RadioMapSolveStats& st) {
+  auto res = tracer::solve_points(scene, node, o.points, trace.tracer, trace.radio, &st);
   if (!diffuse) return res;
   std::vector<tracer::Node> nodes{node};
   std::vector<std::uint32_t> receivers;
@@ -246,7 +246,7 @@ TxMaps solve_transmitters(const tracer::TraceScene& scene, const RadioMapSetting
     node.id = tx.id;
     node.position = tx.position;
     const auto t1 = std::chrono::steady_clock::now();
-    generators::RadioMapSolveStats st;
+    tracer::RadioMapSolveStats st;
     const auto res = solve_tx(scene, node, o, diffuse, trace, st);
     const double sec = std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count();
     m.solve_s += sec;
@@ -386,7 +386,7 @@ json run_radiomap_stage(const RadioMapArgs& args, const Settings& all, const std
   if (!all.file.empty()) inputs.push_back({"config", all.file});
   if (!args.poses.empty()) place_poses(args, scene, inputs);
   for (const auto& t : s.tx)
-    if (generators::inside_static(scene, t.position))
+    if (tracer::inside_static(scene, t.position))
       throw std::invalid_argument("radiomap: transmitter " + t.id + " at (" + std::to_string(t.position[0]) + ", " +
                                   std::to_string(t.position[1]) + ", " + std::to_string(t.position[2]) +
                                   ") is inside a building of " + scene_file.string());

@@ -1,7 +1,7 @@
 // Stage `raysweep radiomap`: the path gain from one or more transmitters at
 // every voxel of the streets (or the open air of the scene box), written as
 // one OpenVDB file (pipeline/radiomap_vdb.hpp), with an optional PNG slice.
-// The solver is generators/radiomap_solver.hpp; docs/radiomap.md describes
+// The solver is tracer/radiomap_solver.hpp; docs/radiomap.md describes
 // the file and the error against `raysweep trace`.
 #pragma once
 

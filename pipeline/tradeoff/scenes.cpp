@@ -19,7 +19,7 @@ using json = nlohmann::json;
 
 namespace {
 
-std::string mm(double m) { return fmt::format("{:g}m", m); }
+std::string metres_label(double m) { return fmt::format("{:g}m", m); }
 
 }  // namespace
 
@@ -116,10 +116,11 @@ void add_scene_variants(const GridBase& b, const GridAxes& axes, int coarsest, T
     // row would only chart the timer's noise (on the ring road's box
     // buildings it "dominated" the default by 1 % of time).
     if (scenes.scene_for(m).stats.objects_simplified == 0) {
-      spdlog::info("tradeoff: static {} leaves every object as it is: the default's scene, not charted", mm(m));
+      spdlog::info("tradeoff: static {} leaves every object as it is: the default's scene, not charted",
+                   metres_label(m));
       continue;
     }
-    auto s = b.variant("static " + mm(m));
+    auto s = b.variant("static " + metres_label(m));
     s.simplify_m = m;
     grid.push_back(s);
   }

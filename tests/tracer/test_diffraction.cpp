@@ -21,7 +21,10 @@
 #include <vector>
 
 #include "closed_forms.hpp"
-#include "tracer/image_search.hpp"
+#include "em/utd.hpp"
+#include "reflected_edges.hpp"
+#include "search/face_index.hpp"
+#include "search/visibility.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;

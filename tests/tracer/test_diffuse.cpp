@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "closed_forms.hpp"
+#include "em/scattering.hpp"
 #include "tracer_fixtures.hpp"
 
 using namespace raysweep;
@@ -142,7 +143,7 @@ struct PlateIntegral {
   // The ER model scatters S^2 |Gamma(theta_i)|^2 of the incident power
   // with a lobe normalised at theta_i: not reciprocal for lossy slabs or
   // directive lobes. The tile integration uses the mean of both directions
-  // (tracer/diffuse.hpp); the ray estimator gathers from the first node.
+  // (tracer/src/diffuse_tiles.hpp); the ray estimator gathers from the first node.
   double symmetric() const {
     PlateIntegral back = *this;
     std::swap(back.tx, back.rx);

@@ -11,7 +11,9 @@
 #include <vector>
 
 #include "meshkit/materials.hpp"
-#include "tracer/em.hpp"
+#include "tracer/em/antenna.hpp"
+#include "tracer/em/coefficients.hpp"
+#include "tracer/em/materials.hpp"
 
 namespace {
 

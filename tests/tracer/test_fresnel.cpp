@@ -5,7 +5,7 @@
 
 #include <cmath>
 
-#include "tracer/fresnel.hpp"
+#include "fresnel_zone.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 

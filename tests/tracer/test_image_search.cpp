@@ -14,7 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "tracer/image_search.hpp"
+#include "search/beam_search.hpp"
+#include "search/face_index.hpp"
+#include "search/visibility.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 
@@ -686,11 +688,11 @@ TEST(ImageSearch, BeamVehicleMethodsProposeTheSameCandidates) {
       for (std::uint32_t r = 0; r < st.nodes.size(); ++r)
         if (r != src) receivers.push_back(r);
       std::vector<tracer::ImageCandidate> by_passes, by_lookups, cheaper;
-      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_passes, nullptr, true,
-                                      tracer::BeamVehicleMethod::passes);
-      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_lookups, nullptr, true,
-                                      tracer::BeamVehicleMethod::lookups);
-      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, cheaper, nullptr, true);
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_passes,
+                                      {.with_ground = true, .method = tracer::BeamVehicleMethod::passes});
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, by_lookups,
+                                      {.with_ground = true, .method = tracer::BeamVehicleMethod::lookups});
+      tracer::beam_vehicle_candidates(scene, faces, st.nodes, src, receivers, combos, cheaper, {.with_ground = true});
       by_passes = sorted(by_passes);
       by_lookups = sorted(by_lookups);
       cheaper = sorted(cheaper);

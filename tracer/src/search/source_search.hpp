@@ -1,0 +1,91 @@
+// The base of the candidate searches that run per source: the source, its
+// receivers, the on-face test and the counters (SourceSearch); for the image
+// search's own stages also the slab bounds and the receivers above the
+// source (CappedSearch).
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include "search/face_index.hpp"
+#include "search/image_search.hpp"
+#include "search/receiver_kernel.hpp"
+#include "search/visibility.hpp"
+
+namespace raysweep::tracer {
+
+// What one source's searches share: the source, its receivers relative to it
+// (the vectorised passes' form), the on-face test and the counters.
+class SourceSearch {
+ public:
+  SourceSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+               const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out)
+      : scene(scene), faces(faces), nodes(nodes), receivers(receivers), out(out), xs(nodes[src].position) {
+    for (auto r : receivers) rx.push(nodes[r].position - xs);
+    scratch.n = rx.size();
+    scratch.pad();
+  }
+  void add_stats(ImageSearchStats* stats) const {
+    if (stats) {
+      stats->image_sources += local.image_sources;
+      stats->tests += local.tests;
+    }
+  }
+
+ protected:
+  const TraceScene& scene;
+  const ImageFaces& faces;
+  const std::vector<Node>& nodes;
+  const std::vector<std::uint32_t>& receivers;
+  std::vector<ImageCandidate>& out;
+  const Vec3 xs;
+  // Everything relative to the source: the source is the origin.
+  Receivers rx, scratch;
+  ImageSearchStats local;
+
+  Vec3 receiver(std::size_t r) const { return Vec3{rx.x[r], rx.y[r], rx.z[r]} + xs; }
+
+  // Inlined at every call (as the lambda it replaces was): it runs per
+  // candidate point, and a call costs as much as its sphere test.
+  [[gnu::always_inline]] inline bool on_face(std::size_t f, const Vec3& p) const {
+    const Vec3 w = p - faces.spheres[f].centre;
+    const double rr = faces.spheres[f].radius + faces.tol[f];
+    return dot(w, w) <= rr * rr && scene.face_contains(faces.refs[f], p, faces.tol[f]);
+  }
+};
+
+// The image search's stages: sequences that are their own reverse's
+// counterpart are searched towards the receivers above the source only,
+// and static sequences whose legs the slab bounds put over their cap are
+// skipped.
+class CappedSearch : public SourceSearch {
+ public:
+  CappedSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
+               const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, const SlabBounds* slabs)
+      : SourceSearch(scene, faces, nodes, src, receivers, out),
+        src(src),
+        slabs(slabs),
+        higher_from(
+            static_cast<std::size_t>(std::upper_bound(receivers.begin(), receivers.end(), src) - receivers.begin())) {}
+
+ protected:
+  const std::uint32_t src;
+  const SlabBounds* slabs;        // null: no slab bounds
+  const std::size_t higher_from;  // the first receiver above the source
+
+  // Whether a first leg from the source to static face f1 (and a last leg
+  // from static face fl to receiver r) cross more slabs than the cap.
+  bool over_cap(std::uint32_t f1) const { return slabs && slabs->at(src, f1) > slabs->cap; }
+  bool over_cap(std::uint32_t f1, std::size_t r, std::uint32_t fl) const {
+    return slabs && slabs->at(src, f1) + slabs->at(receivers[r], fl) > slabs->cap;
+  }
+};
+
+// image_candidates' sequences of two or more static faces (order 2, and
+// with `ground3` order 3 through the ground): search/static_pairs.cpp.
+void static_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                            std::uint32_t src, const std::vector<std::uint32_t>& receivers, const SlabBounds* slabs,
+                            bool ground3, std::vector<ImageCandidate>& out, ImageSearchStats* stats);
+
+}  // namespace raysweep::tracer

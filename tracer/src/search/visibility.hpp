@@ -1,0 +1,48 @@
+// What one convex static face hides: lower bounds on the slabs a leg
+// between a node and a static face crosses (SlabBounds), and whether a face
+// hides a set of points whole from a source (hidden_by_convex_face).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "search/face_index.hpp"
+#include "tracer/solver.hpp"
+
+namespace raysweep::tracer {
+
+// Lower bounds on the slabs a leg between a node and a static face crosses:
+// at(n, f) distinct convex static faces that every segment from node n to a
+// point of f's convex outline crosses well inside them (the argument of
+// hidden_by_convex_face below, for each face every ray to the outline's
+// vertices crosses), counted up to cap + 1. exact_path counts every static
+// face a leg crosses as a slab (or stops at an opaque one), so a sequence
+// whose first leg from the source and last leg to the receiver together
+// cross more than `cap` (TracerConfig::max_transmissions, 0 without
+// refraction) is never a path: the static searches skip it. In an old town
+// most faces lie behind buildings (Bad Hersfeld: 97 % of the candidates
+// died at the two-slab cap).
+struct SlabBounds {
+  int cap = 0;
+  std::uint32_t static_count = 0;
+  std::vector<std::uint8_t> lb;  // node-major; nodes not asked for: 0
+  int at(std::uint32_t node, std::uint32_t f) const { return lb[std::size_t{node} * static_count + f]; }
+};
+// For the nodes with `wanted` set.
+SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
+                       const std::vector<char>& wanted, int cap);
+
+// Whether one convex static face hides the convex hull of `points` (a
+// face's outline, an edge's two ends) whole from `src`: the rays to every
+// point first meet the same convex face (ImageFaces::convex; `skip`
+// ignored), well inside it, with src and the points well apart from its
+// plane (a margin over `tol`, the on-face tolerance of what is hidden). A
+// point of the hull is a convex combination of the points, and the ray to
+// it crosses the face's plane inside the convex hull of those hits (a
+// central projection keeps convex hulls): every segment from src to the
+// hull crosses that face. Exact, and conservative: false whenever unsure.
+bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                           std::size_t count, const FaceRef* skip, double tol);
+
+
+}  // namespace raysweep::tracer
