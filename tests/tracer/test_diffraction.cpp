@@ -1732,3 +1732,65 @@ TEST(DiffractionReflection, CombinationsOnChosenEdgesAreTheWholeListFiltered) {
   tracer::reflected_edges(scene, faces, src, 1e4, empty, &none);
   EXPECT_TRUE(empty.empty());
 }
+
+// Reflection-diffraction over a town of blocks with the slab bounds' help
+// (a face they bound by one or more is hidden whole; the antenna's walls
+// tried on each part first): every path of every (static face, edge)
+// combination, each solved directly, is in the snapshot, and nothing else.
+TEST(DiffractionReflection, HiddenFacesAndPartsLoseNoPath) {
+  meshkit::Scene s;
+  for (int bx = 0; bx < 3; ++bx)
+    for (int by = 0; by < 3; ++by)
+      add_box_object(s, {30.0 * bx, 30.0 * by, 0}, {30.0 * bx + 18, 30.0 * by + 20, 9.0 + 3 * ((bx + by) % 3)},
+                     "concrete", "b" + std::to_string(bx) + std::to_string(by));
+  add_ground(s, 300);
+  tracer::TraceScene scene(s);
+  const std::vector<tracer::Node> nodes{node("a", {24, 25, 1.5}), node("b", {-6, 40, 1.5}), node("c", {54, 3, 1.5}),
+                                        node("d", {70, 55, 1.5}), node("e", {40, 85, 1.5})};
+  auto cfg = diffraction_config();
+  cfg.candidates = tracer::CandidateSearch::image;
+  cfg.diffuse = false;
+  cfg.refraction = true;
+  cfg.diffraction_reflection = true;
+  const auto snap = tracer::trace_snapshot(scene, nodes, cfg, radio());
+  const tracer::Electromagnetics em(scene.material_names(), radio(), {});
+  const auto faces = tracer::image_faces(scene);
+  std::size_t expected = 0;
+  for (const auto& pr : snap.pairs) {
+    std::vector<std::pair<double, double>> found;  // (delay, power) of the reflected diffraction paths
+    for (const auto& path : pr.paths)
+      if (path.interactions.size() == 2 &&
+          (path.interactions[0].type == tracer::InteractionType::diffraction ||
+           path.interactions[1].type == tracer::InteractionType::diffraction))
+        found.emplace_back(path.tau_s, std::norm(path.a));
+    std::size_t solved = 0;
+    for (std::uint32_t f = 0; f < faces.static_count; ++f)
+      for (const auto& edge : scene.edges()) {
+        // A face in the wedge's own planes: the UTD coefficient holds it.
+        const tracer::Plane pl = scene.plane({0, f});
+        bool own = false;
+        for (const tracer::FaceRef& wf : {edge.face0, edge.face_n}) {
+          const tracer::Plane pw = scene.plane(wf);
+          own = own || wf.face == f ||
+                (std::fabs(tracer::dot(pw.normal, pl.normal)) > 1 - 1e-9 &&
+                 std::fabs(tracer::dot(pw.normal, pl.normal) * pw.offset - pl.offset) < 1e-6);
+        }
+        if (own) continue;
+        const tracer::FaceRef face{0, f};
+        for (int end = 0; end < 2; ++end) {
+          const auto path = tracer::compute_diffraction_path(scene, em, nodes[pr.tx], nodes[pr.rx], edge, nullptr,
+                                                             end == 0 ? &face : nullptr, end == 1 ? &face : nullptr);
+          if (!path) continue;
+          ++solved;
+          const bool in = std::any_of(found.begin(), found.end(), [&](const auto& d) {
+            return std::fabs(d.first - path->tau_s) < 1e-15 && std::fabs(d.second - std::norm(path->a)) <=
+                                                                       1e-9 * std::norm(path->a);
+          });
+          EXPECT_TRUE(in) << "pair " << pr.tx << "-" << pr.rx << " face " << f << " end " << end;
+        }
+      }
+    EXPECT_EQ(found.size(), solved) << "pair " << pr.tx << "-" << pr.rx;
+    expected += solved;
+  }
+  EXPECT_GT(expected, 20u);
+}

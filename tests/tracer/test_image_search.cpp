@@ -304,6 +304,69 @@ TEST(ImageSearch, SlabBoundsSkipOnlyWhatTheCapDrops) {
   EXPECT_GE(std::count(b.lb.begin(), b.lb.end(), 3), 10);  // 15: the far rows' far walls
 }
 
+// Whether the segment from src to p crosses static face g inside its
+// convex outline (by hand: the plane, then the outline's sides).
+bool segment_crosses(const tracer::ImageFaces& faces, std::uint32_t g, const tracer::Vec3& src, const tracer::Vec3& p) {
+  using namespace raysweep::tracer;
+  const tracer::Plane& pl = faces.planes[g];
+  const double hs = tracer::dot(pl.normal, src) - pl.offset, hp = tracer::dot(pl.normal, p) - pl.offset;
+  if (!(hs * hp < 0)) return false;
+  const tracer::Vec3 x = src + (hs / (hs - hp)) * (p - src);
+  const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
+  for (std::uint32_t k = o0; k < o1; ++k) {
+    const tracer::Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
+    if (tracer::dot(tracer::cross(b - a, x - a), pl.normal) < 0) return false;
+  }
+  return true;
+}
+
+// Streets of random blocks, antennas in every street: each bound counts no
+// more convex faces than lie across every segment from the antenna to the
+// face's outline (counted by hand over every static face, no ray), and the
+// antenna's walls are faces that do lie across some face's segments. The
+// bounds reuse the walls that counted for the faces before, so this holds
+// whatever the order of the faces.
+TEST(ImageSearch, SlabBoundsNeverCountMoreThanLieAcrossEverySegment) {
+  std::mt19937 rng(23);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  for (int town = 0; town < 3; ++town) {
+    meshkit::Scene sc;
+    add_ground(sc, 200);
+    for (int row = 0; row < 4; ++row)
+      for (int b = 0; b < 4; ++b) {
+        const double x0 = -100 + 50 * b + u(0, 8), y0 = -90 + 45 * row + u(0, 6);
+        add_box_object(sc, {x0, y0, 0}, {x0 + u(25, 40), y0 + u(15, 28), u(6, 30)}, "concrete",
+                       "b" + std::to_string(row) + std::to_string(b));
+      }
+    std::vector<tracer::Node> nodes;
+    for (int a = 0; a < 6; ++a)
+      nodes.push_back(node("n" + std::to_string(a), {u(-90, 90), -72 + 45 * (a % 3) + u(0, 4), 1.5}));
+    tracer::TraceScene scene(sc);
+    const auto faces = tracer::image_faces(scene);
+    const int cap = 2;
+    const auto b = tracer::slab_bounds(scene, faces, nodes, std::vector<char>(nodes.size(), 1), cap);
+    std::size_t counted = 0;
+    for (std::uint32_t n = 0; n < nodes.size(); ++n) {
+      for (std::uint32_t f = 0; f < faces.static_count; ++f) {
+        int across = 0;
+        for (std::uint32_t g = 0; g < faces.static_count; ++g) {
+          if (g == f || !faces.convex[g]) continue;
+          bool all = true;
+          for (std::uint32_t k = faces.outline_begin[f]; k < faces.outline_begin[f + 1] && all; ++k)
+            all = segment_crosses(faces, g, nodes[n].position, faces.outline[k]);
+          across += all;
+        }
+        ASSERT_LE(b.at(n, f), std::min(across, cap + 1)) << "town " << town << " node " << n << " face " << f;
+        counted += b.at(n, f) > 0;
+      }
+      EXPECT_FALSE(b.walls[n].empty()) << "node " << n;
+      EXPECT_LE(b.walls[n].size(), tracer::SlabBounds::kWalls);
+      for (const auto g : b.walls[n]) EXPECT_TRUE(faces.convex[g]);
+    }
+    EXPECT_GT(counted, 100u) << "town " << town;
+  }
+}
+
 // With instanced vehicles (the built-in models, ~110 planar faces each) the
 // order-1 paths are exact: small, distant body panels and windows included.
 TEST(ImageSearch, VehicleReflectionsMatchExhaustiveAtOrder1) {

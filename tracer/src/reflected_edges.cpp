@@ -9,7 +9,8 @@
 namespace raysweep::tracer {
 
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only) {
+                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only,
+                     const SlabBounds* slabs, std::uint32_t node) {
   const auto& edges = scene.edges();
   if (edges.empty() || (only && only->empty())) return;
   // The tree the walk runs down: every edge's, or one over `only`.
@@ -27,15 +28,17 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
   }
   std::vector<Vec3> pyramid;
   std::vector<std::uint32_t> stack;
+  const std::vector<std::uint32_t>* walls = slabs ? &slabs->walls[node] : nullptr;
   for (std::uint32_t f = 0; f < faces.static_count; ++f) {
     const Plane& pl = faces.planes[f];
     const double ds = dot(pl.normal, src) - pl.offset;
     if (ds == 0) continue;
     // A face hidden whole from src by one convex face reflects nothing to
-    // its edges (a few rays: cheaper than the walk below).
+    // its edges (a few rays, or none: cheaper than the walk below).
     const FaceRef self{0, f};
-    if (hidden_by_convex_face(scene, faces, src, &faces.outline[faces.outline_begin[f]],
-                              faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
+    if (slabs ? slabs->at(node, f) >= 1
+              : hidden_by_convex_face(scene, faces, src, &faces.outline[faces.outline_begin[f]],
+                                      faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
       continue;
     const Vec3 img = src - (2 * ds) * pl.normal;
     pyramid.clear();
@@ -93,7 +96,7 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
       // path reflected there reaches the edge.
       const Vec3 ends[2] = {crossing(img, -ds, e.a + z0 * e.e, dot(pl.normal, e.a + z0 * e.e) - pl.offset),
                             crossing(img, -ds, e.a + z1 * e.e, dot(pl.normal, e.a + z1 * e.e) - pl.offset)};
-      if (hidden_by_convex_face(scene, faces, src, ends, 2, &self, faces.tol[f])) return;
+      if (hidden_by_convex_face(scene, faces, src, ends, 2, &self, faces.tol[f], walls)) return;
       out.push_back({f, k, z0, z1, zt, norm(v)});
     });
   }

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "search/face_index.hpp"
+#include "search/visibility.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::tracer {
@@ -19,7 +20,8 @@ namespace raysweep::tracer {
 // tolerance), within `range` of the image, seen by the image from outside
 // the wedge. A face in one of the wedge's planes is left out (the UTD
 // coefficient's reflection terms hold it), and so is a face that one convex
-// face hides whole from the source (hidden_by_convex_face).
+// face hides whole from the source (hidden_by_convex_face), or the
+// reflection points of the part alone.
 struct ReflectedEdge {
   std::uint32_t face = 0;
   std::uint32_t edge = 0;
@@ -40,8 +42,12 @@ struct ReflectedEdge {
 // just the combinations on those edges: the same entries, in the same
 // order, as the whole list filtered to them. A pair uses only the edges its
 // other end sees, and a source's partners see a small part of a city's
-// edges: the walk then runs down a tree over those alone.
+// edges: the walk then runs down a tree over those alone. With `slabs` (the
+// source is their node `node`), a face whose bound is one or more is hidden
+// whole (the face the bound counts lies across every segment to it, first
+// in line or not), and the source's walls are tried on the parts first.
 void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, double range,
-                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only = nullptr);
+                     std::vector<ReflectedEdge>& out, const std::vector<std::uint32_t>* only = nullptr,
+                     const SlabBounds* slabs = nullptr, std::uint32_t node = 0);
 
 }  // namespace raysweep::tracer

@@ -56,6 +56,15 @@ const ImageFaces& SnapshotPlan::faces() const {
   return *faces_;
 }
 
+const SlabBounds& SnapshotPlan::slab_bounds() const {
+  if (!slabs_) {
+    const std::vector<char> wanted(is_source.begin(), is_source.end());
+    const int cap = cfg.refraction ? cfg.max_transmissions : 0;
+    slabs_ = std::make_unique<SlabBounds>(tracer::slab_bounds(scene, faces(), nodes, wanted, cap));
+  }
+  return *slabs_;
+}
+
 ShootPass& SnapshotPlan::shoot() {
   if (!shoot_) {
     shoot_ = std::make_unique<ShootPass>(run_shoot_pass(*this));

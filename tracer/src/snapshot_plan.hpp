@@ -12,6 +12,7 @@
 
 #include "fresnel_zone.hpp"
 #include "search/face_index.hpp"
+#include "search/visibility.hpp"
 #include "shoot/shoot.hpp"
 #include "tracer/solver.hpp"
 
@@ -54,6 +55,11 @@ struct SnapshotPlan {
   static std::uint64_t key(std::uint32_t i, std::uint32_t j) { return static_cast<std::uint64_t>(i) << 32 | j; }
   // The scene's faces as the image search indexes them (built on first use).
   const ImageFaces& faces() const;
+  // Every source's lower bounds on the slabs to each static face, with the
+  // cap the exact paths keep (built on first use): the image search prunes
+  // sequences by them, the reflection-diffraction search the faces they
+  // hide whole (a bound of one or more).
+  const SlabBounds& slab_bounds() const;
   // The shoot-and-bounce pass (run on first use; empty when no stage needs it).
   ShootPass& shoot();
   double shoot_seconds() const { return shoot_ ? shoot_->seconds : 0; }
@@ -62,6 +68,7 @@ struct SnapshotPlan {
 
  private:
   mutable std::unique_ptr<ImageFaces> faces_;
+  mutable std::unique_ptr<SlabBounds> slabs_;
   std::unique_ptr<ShootPass> shoot_;
 };
 

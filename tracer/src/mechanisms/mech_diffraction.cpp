@@ -87,6 +87,7 @@ class Diffraction final : public Mechanism {
     edge_r_.resize(n);
     const auto& edges = plan.scene.edges();
     const auto& faces = plan.faces();
+    const SlabBounds& slabs = plan.slab_bounds();
     const std::size_t words = (edges.size() + 63) / 64;
     tbb::parallel_for(std::uint32_t{0}, n, [&](std::uint32_t i) {
       if (!plan.is_source[i]) return;
@@ -111,7 +112,7 @@ class Diffraction final : public Mechanism {
       for (std::size_t w = 0; w < words; ++w)
         for (std::uint64_t bits = wanted[w]; bits; bits &= bits - 1)
           only.push_back(static_cast<std::uint32_t>(64 * w + std::countr_zero(bits)));
-      reflected_edges(plan.scene, faces, plan.nodes[i].position, plan.range, reflected_[i], &only);
+      reflected_edges(plan.scene, faces, plan.nodes[i].position, plan.range, reflected_[i], &only, &slabs, i);
     });
   }
 

@@ -68,10 +68,7 @@ void image_search(const SnapshotPlan& plan, std::vector<Sequences>& candidates, 
   const ImageFaces& faces = plan.faces();
   std::vector<std::vector<ImageCandidate>> found(plan.n);
   std::vector<ImageSearchStats> st(plan.n);
-  std::vector<char> searching(plan.n);
-  for (std::uint32_t i = 0; i < plan.n; ++i) searching[i] = !plan.partners[i].empty();
-  const SlabBounds slabs =
-      slab_bounds(plan.scene, faces, plan.nodes, searching, cfg.refraction ? cfg.max_transmissions : 0);
+  const SlabBounds& slabs = plan.slab_bounds();
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t i) {
     if (plan.partners[i].empty()) return;
     image_candidates(plan.scene, faces, plan.nodes, i, plan.partners[i], std::min(cfg.max_depth, 3), found[i],

@@ -34,13 +34,48 @@ bool crosses_deep(const ImageFaces& faces, std::uint32_t g, const Vec3& src, con
          deep_inside(faces, g, src + t * dir, margin);
 }
 
+// The margin of the tests that hide static face f (or points on it) from src.
+double hiding_margin(const TraceScene& scene, const Vec3& src, double tol) {
+  return 0.01 + 4 * scene.slack(src, 0) + 4 * tol;
+}
+
+// Whether every segment from src to points[0, count) crosses static face g
+// deep (crosses_deep), from g's plane alone: no ray.
+bool crosses_all(const ImageFaces& faces, std::uint32_t g, const Vec3& src, const Vec3* points, std::size_t count,
+                 double margin) {
+  const Plane& pg = faces.planes[g];
+  const double hs = dot(pg.normal, src) - pg.offset;
+  for (std::size_t k = 0; k < count; ++k) {
+    const Vec3 w = points[k] - src;
+    const double len = norm(w);
+    const double hp = dot(pg.normal, points[k]) - pg.offset;
+    if (!(len > 2 * margin) || !(hs * hp < 0)) return false;
+    if (!crosses_deep(faces, g, src, points[k], (1.0 / len) * w, len * hs / (hs - hp), margin)) return false;
+  }
+  return true;
+}
+
+// How many of `walls` (not `skip`) every segment from src to the points
+// crosses deep, up to `limit`; with `which`, those walls.
+int walls_across(const ImageFaces& faces, const std::vector<std::uint32_t>& walls, const Vec3& src,
+                 const Vec3* points, std::size_t count, std::uint32_t skip, double margin, int limit,
+                 std::vector<std::uint32_t>* which = nullptr) {
+  int found = 0;
+  for (const std::uint32_t g : walls)
+    if (g != skip && crosses_all(faces, g, src, points, count, margin)) {
+      if (which) which->push_back(g);
+      if (++found >= limit) break;
+    }
+  return found;
+}
+
 // SlabBounds::at(node at src, f): the faces every ray from src to f's
 // outline vertices crosses deep (ascending, intersected ray by ray).
 int slabs_to_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, std::uint32_t f, int limit,
                   std::vector<Hit>& hits, std::vector<std::uint32_t>& common, std::vector<std::uint32_t>& next) {
   const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
   if (o1 - o0 < 3) return 0;
-  const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * faces.tol[f];
+  const double margin = hiding_margin(scene, src, faces.tol[f]);
   const FaceRef self{0, f};
   for (std::uint32_t k = o0; k < o1; ++k) {
     const Vec3 w = faces.outline[k] - src;
@@ -65,6 +100,40 @@ int slabs_to_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& 
   return std::min(static_cast<int>(common.size()), limit);
 }
 
+// One node's bounds over every static face (lb[f]), the walls that counted
+// last tried first; its most counted walls into `walls`.
+void node_slab_bounds(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, int limit,
+                      std::uint8_t* lb, std::vector<std::uint32_t>& walls) {
+  constexpr std::size_t kRecent = 12;
+  std::vector<Hit> hits;
+  std::vector<std::uint32_t> common, next, recent;  // recent: most recent first
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> counted;  // (face, faces it counted for)
+  auto count = [&](std::uint32_t g) {
+    auto it = std::find_if(counted.begin(), counted.end(), [g](const auto& c) { return c.first == g; });
+    if (it == counted.end()) counted.emplace_back(g, 1);
+    else ++it->second;
+  };
+  for (std::uint32_t f = 0; f < faces.static_count; ++f) {
+    const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
+    const double margin = hiding_margin(scene, src, faces.tol[f]);
+    common.clear();
+    const int known =
+        o1 - o0 >= 3 ? walls_across(faces, recent, src, &faces.outline[o0], o1 - o0, f, margin, limit, &common) : 0;
+    const int cast = known < limit ? slabs_to_face(scene, faces, src, f, limit, hits, common, next) : 0;
+    lb[f] = static_cast<std::uint8_t>(std::max(known, cast));
+    for (const std::uint32_t g : common) {
+      count(g);
+      const auto at = std::find(recent.begin(), recent.end(), g);
+      if (at != recent.end()) recent.erase(at);
+      else if (recent.size() == kRecent) recent.pop_back();
+      recent.insert(recent.begin(), g);
+    }
+  }
+  std::sort(counted.begin(), counted.end(),
+            [](const auto& a, const auto& b) { return a.second != b.second ? a.second > b.second : a.first < b.first; });
+  for (std::size_t k = 0; k < counted.size() && k < SlabBounds::kWalls; ++k) walls.push_back(counted[k].first);
+}
+
 }  // namespace
 
 SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
@@ -73,21 +142,21 @@ SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const s
   b.cap = cap;
   b.static_count = faces.static_count;
   b.lb.assign(nodes.size() * faces.static_count, 0);
+  b.walls.resize(nodes.size());
   tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t n) {
-    if (!wanted[n]) return;
-    std::vector<Hit> hits;
-    std::vector<std::uint32_t> common, next;
-    for (std::uint32_t f = 0; f < faces.static_count; ++f)
-      b.lb[n * faces.static_count + f] =
-          static_cast<std::uint8_t>(slabs_to_face(scene, faces, nodes[n].position, f, cap + 1, hits, common, next));
+    if (wanted[n])
+      node_slab_bounds(scene, faces, nodes[n].position, cap + 1, &b.lb[n * faces.static_count], b.walls[n]);
   });
   return b;
 }
 
 bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
-                           std::size_t count, const FaceRef* skip, double tol) {
+                           std::size_t count, const FaceRef* skip, double tol,
+                           const std::vector<std::uint32_t>* walls) {
   if (count < 2) return false;
-  const double margin = 0.01 + 4 * scene.slack(src, 0) + 4 * tol;
+  const double margin = hiding_margin(scene, src, tol);
+  const std::uint32_t self = skip && skip->instance == 0 ? skip->face : ~0u;
+  if (walls && walls_across(faces, *walls, src, points, count, self, margin, 1) > 0) return true;
   std::uint32_t blocker = ~0u;
   for (std::size_t k = 0; k < count; ++k) {
     const Vec3 w = points[k] - src;

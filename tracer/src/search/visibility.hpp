@@ -21,11 +21,19 @@ namespace raysweep::tracer {
 // cross more than `cap` (TracerConfig::max_transmissions, 0 without
 // refraction) is never a path: the static searches skip it. In an old town
 // most faces lie behind buildings (Bad Hersfeld: 97 % of the candidates
-// died at the two-slab cap).
+// died at the two-slab cap). A source meets the same few walls (its own
+// street's) face after face: the walls that counted for the faces before
+// are tried on the next by their planes (crosses_deep, no ray), and the
+// rays are cast only where those do not reach the cap. Either way a counted
+// face lies across every segment, so the count is a lower bound.
 struct SlabBounds {
   int cap = 0;
   std::uint32_t static_count = 0;
   std::vector<std::uint8_t> lb;  // node-major; nodes not asked for: 0
+  // Per node, the convex faces that counted for the most static faces (at
+  // most kWalls, most first): the walls that hide most of the city from it.
+  static constexpr std::size_t kWalls = 16;
+  std::vector<std::vector<std::uint32_t>> walls;
   int at(std::uint32_t node, std::uint32_t f) const { return lb[std::size_t{node} * static_count + f]; }
 };
 // For the nodes with `wanted` set.
@@ -41,8 +49,12 @@ SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const s
 // it crosses the face's plane inside the convex hull of those hits (a
 // central projection keeps convex hulls): every segment from src to the
 // hull crosses that face. Exact, and conservative: false whenever unsure.
+// With `walls` (SlabBounds::walls of the source), one of them that every
+// segment crosses deep hides the points as well, whether or not the rays
+// meet it first: tried by its plane before any ray is cast.
 bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
-                           std::size_t count, const FaceRef* skip, double tol);
+                           std::size_t count, const FaceRef* skip, double tol,
+                           const std::vector<std::uint32_t>* walls = nullptr);
 
 
 }  // namespace raysweep::tracer
