@@ -9,7 +9,6 @@
 
 #include "generators/sweep.hpp"
 #include "meshkit/vehicle_model.hpp"
-#include "pipeline/trace_inputs.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 
