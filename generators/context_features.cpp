@@ -10,8 +10,8 @@
 
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/hdf5/column_file.hpp"
 #include "meshkit/errors.hpp"
 #include "tracer/trace_scene.hpp"
 
@@ -221,10 +221,10 @@ struct DatasetInputs {
       file.fail("attribute complete", "missing: the sweep did not finish this file");
     F = file.dataset("/frames/time_s").rows();
     L = file.dataset("/links/tx").rows();
-    node_offset = file.dataset("/frames/node_offset").read_all<std::uint64_t>(H5T_NATIVE_UINT64, F);
-    link_offset = file.dataset("/frames/link_offset").read_all<std::uint64_t>(H5T_NATIVE_UINT64, F);
-    node_count = file.dataset("/frames/node_count").read_all<std::uint32_t>(H5T_NATIVE_UINT32, F);
-    link_count = file.dataset("/frames/link_count").read_all<std::uint32_t>(H5T_NATIVE_UINT32, F);
+    node_offset = file.dataset("/frames/node_offset").read_all<std::uint64_t>(F);
+    link_offset = file.dataset("/frames/link_offset").read_all<std::uint64_t>(F);
+    node_count = file.dataset("/frames/node_count").read_all<std::uint32_t>(F);
+    link_count = file.dataset("/frames/link_count").read_all<std::uint32_t>(F);
     read_nodes();
   }
 
@@ -232,8 +232,8 @@ struct DatasetInputs {
     const auto id = file.dataset("/nodes/id").strings();
     const auto vclass = file.dataset("/nodes/vclass").strings();
     const std::size_t N = id.size();
-    const auto kind = file.dataset("/nodes/kind").read_all<std::uint8_t>(H5T_NATIVE_UINT8, N);
-    const auto dims = file.dataset("/nodes/dimensions").read_all<float>(H5T_NATIVE_FLOAT, N, 3);
+    const auto kind = file.dataset("/nodes/kind").read_all<std::uint8_t>(N);
+    const auto dims = file.dataset("/nodes/dimensions").read_all<float>(N, 3);
     if (vclass.size() != N) file.fail("/nodes/vclass", "has " + std::to_string(vclass.size()) + " rows, /nodes/id " + std::to_string(N));
     nodes.resize(N);
     for (std::size_t i = 0; i < N; ++i) {
@@ -249,11 +249,11 @@ struct DatasetInputs {
   // Frame f's nodes (sorted by node index) and its links as slots into them.
   void frame(std::uint64_t f, std::vector<FeatureNode>& out, std::vector<std::pair<std::size_t, std::size_t>>& links) {
     const std::uint64_t s0 = node_offset[f], ns = node_count[f], l0 = link_offset[f], nl = link_count[f];
-    const auto node = file.dataset("/node_states/node").read<std::uint32_t>(H5T_NATIVE_UINT32, s0, ns);
-    const auto pos = file.dataset("/node_states/position").read<double>(H5T_NATIVE_DOUBLE, s0, ns, 3);
-    const auto head = file.dataset("/node_states/heading_deg").read<float>(H5T_NATIVE_FLOAT, s0, ns);
-    const auto tx = file.dataset("/links/tx").read<std::uint32_t>(H5T_NATIVE_UINT32, l0, nl);
-    const auto rx = file.dataset("/links/rx").read<std::uint32_t>(H5T_NATIVE_UINT32, l0, nl);
+    const auto node = file.dataset("/node_states/node").read<std::uint32_t>(s0, ns);
+    const auto pos = file.dataset("/node_states/position").read<double>(s0, ns, 3);
+    const auto head = file.dataset("/node_states/heading_deg").read<float>(s0, ns);
+    const auto tx = file.dataset("/links/tx").read<std::uint32_t>(l0, nl);
+    const auto rx = file.dataset("/links/rx").read<std::uint32_t>(l0, nl);
     out.clear();
     for (std::size_t k = 0; k < ns; ++k) {
       if (node[k] >= nodes.size())

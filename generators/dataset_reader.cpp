@@ -1,13 +1,10 @@
 #include "generators/dataset_reader.hpp"
 
-#include <hdf5.h>
-
 #include <cmath>
 #include <limits>
 #include <map>
 
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "generators/store_level.hpp"
 #include "meshkit/errors.hpp"
 
@@ -18,7 +15,6 @@ using hdf5::QuietHdf5;
 struct DatasetReader::Impl {
   std::string file;
   hdf5::CheckedFile h5;
-  hdf5::Types types;
   DatasetHeader header;
   std::string schema_version;
   bool complete = false;
@@ -30,7 +26,7 @@ struct DatasetReader::Impl {
   std::map<std::string, hdf5::Dataset> dsets;
   hsize_t S = 0, L = 0, P = 0, I = 0, K = 0;
 
-  explicit Impl(std::string path) : file(std::move(path)), h5(file), types(file) {}
+  explicit Impl(std::string path) : file(std::move(path)), h5(file) {}
 
   [[noreturn]] void fail(const std::string& object, const std::string& what) const { h5.fail(object, what); }
 
@@ -42,14 +38,14 @@ struct DatasetReader::Impl {
   }
   hsize_t rows(const std::string& name) { return dset(name).rows(); }
   template <class T>
-  std::vector<T> read(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width = 1) {
-    return dset(name).read<T>(mtype, start, n, width);
+  std::vector<T> read(const std::string& name, hsize_t start, hsize_t n, hsize_t width = 1) {
+    return dset(name).read<T>(start, n, width);
   }
   // A column added in a later minor version: `fill` in files written before it.
   template <class T>
-  std::vector<T> read_or(const std::string& name, hid_t mtype, hsize_t start, hsize_t n, hsize_t width, T fill) {
+  std::vector<T> read_or(const std::string& name, hsize_t start, hsize_t n, hsize_t width, T fill) {
     if (!h5.exists(name)) return std::vector<T>(static_cast<std::size_t>(n * width), fill);
-    return read<T>(name, mtype, start, n, width);
+    return read<T>(name, start, n, width);
   }
   bool stores_paths() const { return header.store >= StoreLevel::paths; }
   std::string str_attr(const std::string& name) { return h5.attr<std::string>("/", name); }
@@ -94,11 +90,11 @@ struct DatasetReader::Impl {
     }
 
     const hsize_t F = rows("/frames/time_s");
-    time = read<double>("/frames/time_s", H5T_NATIVE_DOUBLE, 0, F);
-    node_offset = read<std::uint64_t>("/frames/node_offset", H5T_NATIVE_UINT64, 0, F);
-    link_offset = read<std::uint64_t>("/frames/link_offset", H5T_NATIVE_UINT64, 0, F);
-    node_count = read<std::uint32_t>("/frames/node_count", H5T_NATIVE_UINT32, 0, F);
-    link_count = read<std::uint32_t>("/frames/link_count", H5T_NATIVE_UINT32, 0, F);
+    time = read<double>("/frames/time_s", 0, F);
+    node_offset = read<std::uint64_t>("/frames/node_offset", 0, F);
+    link_offset = read<std::uint64_t>("/frames/link_offset", 0, F);
+    node_count = read<std::uint32_t>("/frames/node_count", 0, F);
+    link_count = read<std::uint32_t>("/frames/link_count", 0, F);
     S = rows("/node_states/node");
     L = rows("/links/tx");
     if (stores_paths()) {
@@ -119,8 +115,8 @@ struct DatasetReader::Impl {
       const auto ids = dset("/nodes/id").strings();
       const auto vclass = dset("/nodes/vclass").strings();
       const auto vtype = dset("/nodes/vtype").strings();
-      const auto kind = read<std::uint8_t>("/nodes/kind", H5T_NATIVE_UINT8, 0, N);
-      const auto dims = read<float>("/nodes/dimensions", H5T_NATIVE_FLOAT, 0, N, 3);
+      const auto kind = read<std::uint8_t>("/nodes/kind", 0, N);
+      const auto dims = read<float>("/nodes/dimensions", 0, N, 3);
       if (vclass.size() != N || vtype.size() != N) fail("/nodes", "tables of different lengths");
       for (hsize_t i = 0; i < N; ++i)
         nodes.push_back({ids[i], static_cast<NodeKind>(kind[i]), vclass[i], vtype[i], dims[3 * i], dims[3 * i + 1],
@@ -130,10 +126,10 @@ struct DatasetReader::Impl {
   }
 
   std::uint64_t path_start(std::uint64_t link) {
-    return link >= L || !stores_paths() ? P : read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, link, 1)[0];
+    return link >= L || !stores_paths() ? P : read<std::uint64_t>("/links/path_offset", link, 1)[0];
   }
   std::uint64_t interaction_start(std::uint64_t path) {
-    return path >= P ? I : read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, path, 1)[0];
+    return path >= P ? I : read<std::uint64_t>("/paths/interaction_offset", path, 1)[0];
   }
 
   FrameRows rows_at(std::uint64_t f) {
@@ -155,39 +151,38 @@ struct DatasetReader::Impl {
     const hsize_t ns = b.states - a.states, nl = b.links - a.links, np = b.paths - a.paths,
                   ni = b.interactions - a.interactions;
 
-    const auto s_node = read<std::uint32_t>("/node_states/node", H5T_NATIVE_UINT32, a.states, ns);
-    const auto s_pos = read<double>("/node_states/position", H5T_NATIVE_DOUBLE, a.states, ns, 3);
-    const auto s_vel = read<float>("/node_states/velocity", H5T_NATIVE_FLOAT, a.states, ns, 3);
-    const auto s_head = read<float>("/node_states/heading_deg", H5T_NATIVE_FLOAT, a.states, ns);
+    const auto s_node = read<std::uint32_t>("/node_states/node", a.states, ns);
+    const auto s_pos = read<double>("/node_states/position", a.states, ns, 3);
+    const auto s_vel = read<float>("/node_states/velocity", a.states, ns, 3);
+    const auto s_head = read<float>("/node_states/heading_deg", a.states, ns);
 
-    const auto u8 = H5T_NATIVE_UINT8, u16 = H5T_NATIVE_UINT16, u32 = H5T_NATIVE_UINT32, f32 = H5T_NATIVE_FLOAT;
-    const auto l_tx = read<std::uint32_t>("/links/tx", u32, a.links, nl);
-    const auto l_rx = read<std::uint32_t>("/links/rx", u32, a.links, nl);
-    const auto l_los = read<std::uint8_t>("/links/los_class", u8, a.links, nl);
-    const auto l_flags = read<std::uint8_t>("/links/flags", u8, a.links, nl);
-    const auto l_block = read<std::uint16_t>("/links/blocker_count", u16, a.links, nl);
-    const auto l_gc = read<float>("/links/gain_coherent_db", f32, a.links, nl);
-    const auto l_gi = read<float>("/links/gain_incoherent_db", f32, a.links, nl);
-    const auto l_fd = read<double>("/links/first_delay_s", H5T_NATIVE_DOUBLE, a.links, nl);
-    const auto l_rms = read<float>("/links/rms_delay_spread_s", f32, a.links, nl);
-    const auto l_pc = read<std::uint32_t>("/links/path_count", u32, a.links, nl);
+    const auto l_tx = read<std::uint32_t>("/links/tx", a.links, nl);
+    const auto l_rx = read<std::uint32_t>("/links/rx", a.links, nl);
+    const auto l_los = read<std::uint8_t>("/links/los_class", a.links, nl);
+    const auto l_flags = read<std::uint8_t>("/links/flags", a.links, nl);
+    const auto l_block = read<std::uint16_t>("/links/blocker_count", a.links, nl);
+    const auto l_gc = read<float>("/links/gain_coherent_db", a.links, nl);
+    const auto l_gi = read<float>("/links/gain_incoherent_db", a.links, nl);
+    const auto l_fd = read<double>("/links/first_delay_s", a.links, nl);
+    const auto l_rms = read<float>("/links/rms_delay_spread_s", a.links, nl);
+    const auto l_pc = read<std::uint32_t>("/links/path_count", a.links, nl);
     const bool paths = stores_paths();
-    const auto l_po = paths ? read<std::uint64_t>("/links/path_offset", H5T_NATIVE_UINT64, a.links, nl)
+    const auto l_po = paths ? read<std::uint64_t>("/links/path_offset", a.links, nl)
                             : std::vector<std::uint64_t>(nl, 0);
     const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
-    const auto l_below = read_or<std::uint32_t>("/links/paths_below_threshold", u32, a.links, nl, 1, 0);
-    const auto l_losf = read_or<std::uint8_t>("/links/los_class_fresnel", u8, a.links, nl, 1, 0);
-    const auto l_clear = read_or<float>("/links/fresnel_clearance", f32, a.links, nl, 1, 1);
-    const auto l_vloss = read_or<float>("/links/vehicle_loss_db", f32, a.links, nl, 1, 0);
-    const auto l_beyond = read_or<std::uint32_t>("/links/paths_beyond_top_k", u32, a.links, nl, 1, 0);
-    const auto l_diffuse = read_or<float>("/links/diffuse_gain_db", f32, a.links, nl, 1, -inf);
-    const auto l_kf = read_or<float>("/links/k_factor_db", f32, a.links, nl, 1, -inf);
-    const auto l_dsp = read_or<float>("/links/rms_doppler_spread_hz", f32, a.links, nl, 1, 0);
-    const auto l_asd = read_or<float>("/links/aod_spread_rad", f32, a.links, nl, 2, 0);
-    const auto l_asa = read_or<float>("/links/aoa_spread_rad", f32, a.links, nl, 2, 0);
-    const auto l_sd = read_or<float>("/links/strongest_excess_delay_s", f32, a.links, nl, 1, 0);
-    const auto l_sod = read_or<float>("/links/strongest_aod", f32, a.links, nl, 2, 0);
-    const auto l_soa = read_or<float>("/links/strongest_aoa", f32, a.links, nl, 2, 0);
+    const auto l_below = read_or<std::uint32_t>("/links/paths_below_threshold", a.links, nl, 1, 0);
+    const auto l_losf = read_or<std::uint8_t>("/links/los_class_fresnel", a.links, nl, 1, 0);
+    const auto l_clear = read_or<float>("/links/fresnel_clearance", a.links, nl, 1, 1);
+    const auto l_vloss = read_or<float>("/links/vehicle_loss_db", a.links, nl, 1, 0);
+    const auto l_beyond = read_or<std::uint32_t>("/links/paths_beyond_top_k", a.links, nl, 1, 0);
+    const auto l_diffuse = read_or<float>("/links/diffuse_gain_db", a.links, nl, 1, -inf);
+    const auto l_kf = read_or<float>("/links/k_factor_db", a.links, nl, 1, -inf);
+    const auto l_dsp = read_or<float>("/links/rms_doppler_spread_hz", a.links, nl, 1, 0);
+    const auto l_asd = read_or<float>("/links/aod_spread_rad", a.links, nl, 2, 0);
+    const auto l_asa = read_or<float>("/links/aoa_spread_rad", a.links, nl, 2, 0);
+    const auto l_sd = read_or<float>("/links/strongest_excess_delay_s", a.links, nl, 1, 0);
+    const auto l_sod = read_or<float>("/links/strongest_aod", a.links, nl, 2, 0);
+    const auto l_soa = read_or<float>("/links/strongest_aoa", a.links, nl, 2, 0);
 
     std::vector<std::complex<float>> p_a;
     std::vector<double> p_tau;
@@ -196,21 +191,21 @@ struct DatasetReader::Impl {
     std::vector<std::uint64_t> p_io;
     std::vector<std::uint32_t> i_obj;
     if (paths) {
-      p_a = read<std::complex<float>>("/paths/a", types.mem(hdf5::Dtype::c64), a.paths, np);
-      p_tau = read<double>("/paths/tau_s", H5T_NATIVE_DOUBLE, a.paths, np);
-      p_aod = read<float>("/paths/aod", f32, a.paths, np, 2);
-      p_aoa = read<float>("/paths/aoa", f32, a.paths, np, 2);
-      p_dop = read<float>("/paths/doppler_hz", f32, a.paths, np);
-      p_ic = read<std::uint8_t>("/paths/interaction_count", u8, a.paths, np);
-      p_io = read<std::uint64_t>("/paths/interaction_offset", H5T_NATIVE_UINT64, a.paths, np);
-      i_type = read<std::uint8_t>("/interactions/type", u8, a.interactions, ni);
-      i_obj = read<std::uint32_t>("/interactions/object", u32, a.interactions, ni);
-      i_pt = header.store >= StoreLevel::full ? read<float>("/interactions/point", f32, a.interactions, ni, 3)
+      p_a = read<std::complex<float>>("/paths/a", a.paths, np);
+      p_tau = read<double>("/paths/tau_s", a.paths, np);
+      p_aod = read<float>("/paths/aod", a.paths, np, 2);
+      p_aoa = read<float>("/paths/aoa", a.paths, np, 2);
+      p_dop = read<float>("/paths/doppler_hz", a.paths, np);
+      p_ic = read<std::uint8_t>("/paths/interaction_count", a.paths, np);
+      p_io = read<std::uint64_t>("/paths/interaction_offset", a.paths, np);
+      i_type = read<std::uint8_t>("/interactions/type", a.interactions, ni);
+      i_obj = read<std::uint32_t>("/interactions/object", a.interactions, ni);
+      i_pt = header.store >= StoreLevel::full ? read<float>("/interactions/point", a.interactions, ni, 3)
                                               : std::vector<float>(static_cast<std::size_t>(3 * ni), nan);
     }
 
     std::vector<std::complex<float>> cfr;
-    if (K > 0) cfr = read<std::complex<float>>("/cfr/h", types.mem(hdf5::Dtype::c64), a.links, nl, K);
+    if (K > 0) cfr = read<std::complex<float>>("/cfr/h", a.links, nl, K);
 
     std::vector<FrameRecord> out(static_cast<std::size_t>(count));
     std::size_t s = 0, l = 0, p = 0, i = 0;

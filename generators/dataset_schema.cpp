@@ -5,7 +5,6 @@
 // schema_channels.cpp, schema_sinr.cpp and schema_ns3_table.cpp.
 #include "generators/dataset_schema.hpp"
 
-#include <hdf5.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -16,7 +15,7 @@
 #include <vector>
 
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "generators/context_features.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/schema_validator.hpp"
@@ -125,7 +124,7 @@ std::vector<std::string> validate_in_process(const std::string& path) {
   } catch (const std::exception& e) {
     problems.push_back(path + ": " + e.what());
   }
-  H5Eclear2(H5E_DEFAULT);
+  hdf5::clear_errors();
   return problems;
 }
 
@@ -192,10 +191,10 @@ std::vector<std::string> validate_dataset(const std::string& path) {
 
 nlohmann::json dataset_info(const std::string& path) {
   QuietHdf5 quiet;
-  schema::InfoReader r{path, hdf5::CheckedFile(path)};
-  r.file.open();
+  hdf5::CheckedFile r(path);
+  r.open();
 
-  const std::string format = r.str_attr("format", "");
+  const std::string format = schema::root_str(r, "format");
   if (format == kDatasetFormat) return schema::channel_info(r);
   if (format == sinr::kSinrFormat) return schema::sinr_info(r);
   if (format == kNs3TableFormat) return schema::ns3_table_info(r);

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "generators/dataset.hpp"
-#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5/column_file.hpp"
 
 namespace raysweep::generators {
 

@@ -1,14 +1,13 @@
 #include "generators/dataset_virtual.hpp"
 
-#include <hdf5.h>
-
 #include <map>
 #include <memory>
 
 #include "generators/dataset_reader.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_tables.hpp"
-#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/hdf5/column_file.hpp"
 #include "generators/store_level.hpp"
 #include "meshkit/errors.hpp"
 
@@ -17,7 +16,6 @@ namespace raysweep::generators {
 using hdf5::Column;
 using hdf5::ColumnFile;
 using hdf5::Dtype;
-using hdf5::Handle;
 
 namespace {
 
@@ -35,35 +33,28 @@ bool stored_at(const nlohmann::json& spec, StoreLevel level) {
 struct Piece {
   const VirtualPiece* spec;
   DatasetReader* reader;
-  Handle fid;  // the source, for its index columns
+  std::unique_ptr<hdf5::CheckedFile> source;  // for its index columns
   FrameRows a, b, end;  // rows at the first frame, after the last, and the source's sizes
 };
 
 template <class T>
-std::vector<T> read_source(const Piece& p, const std::string& name, hid_t mtype, hsize_t start, hsize_t n) {
-  Handle d(H5Dopen2(p.fid.get(), name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (!d.valid()) throw meshkit::InputError(p.spec->file.string(), name, "cannot open");
-  try {
-    return hdf5::read_rows<T>(d.get(), name, mtype, start, n);
-  } catch (const hdf5::ReadError& e) {
-    throw meshkit::InputError(p.spec->file.string(), "", e.what());
-  }
+std::vector<T> read_source(const Piece& p, const std::string& name, hsize_t start, hsize_t n) {
+  std::string why;
+  const auto d = p.source->find_dataset(name, &why);
+  if (!d) throw meshkit::InputError(p.spec->file.string(), name, "cannot open");
+  return d->read<T>(start, n);
 }
 
 // The row tables' columns of the level (all but the computed ones) as
 // virtual datasets mapping the pieces' rows in order.
-void map_row_tables(ColumnFile& cf, const std::string& file, StoreLevel level, hsize_t K, const std::vector<Piece>& ps,
-                    const FrameRows& total) {
+void map_row_tables(ColumnFile& cf, StoreLevel level, hsize_t K, const std::vector<Piece>& ps, const FrameRows& total) {
   for (const auto& g : dataset_schema().at("groups")) {
     const std::string group = g.at("name");
     if (group == "nodes" || group == "objects" || (group == "cfr" && K == 0) || !stored_at(g, level)) continue;
     for (const auto& d : g.at("datasets")) {
       const std::string name = d.at("name");
       if (computed(group, name) || !stored_at(d, level)) continue;
-      const std::string where = "/" + group + "/" + name;
       const Dtype dtype = hdf5::parse_dtype(d.at("dtype").get<std::string>());
-      const hsize_t width = d.at("shape").size() == 2 ? (d.at("shape")[1].is_string() ? K : d.at("shape")[1].get<hsize_t>()) : 1;
-      const int rank = static_cast<int>(d.at("shape").size());
       auto rows = [&](const FrameRows& r) {
         return group == "node_states" ? r.states
                : group == "paths"     ? r.paths
@@ -75,32 +66,9 @@ void map_row_tables(ColumnFile& cf, const std::string& file, StoreLevel level, h
         cf.column(group, name, dtype);
         continue;
       }
-      const hsize_t dims[2] = {n_total, width};
-      Handle vspace(H5Screate_simple(rank, dims, nullptr), H5Sclose);
-      Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-      if (!vspace.valid() || !dcpl.valid() || H5Pset_obj_track_times(dcpl.get(), 0) < 0)
-        hdf5::write_fail(file, where, "cannot set virtual dataset properties");
-      hsize_t dst = 0;
-      for (const auto& p : ps) {
-        const hsize_t n = rows(p.b) - rows(p.a);
-        if (n == 0) continue;
-        const hsize_t src_dims[2] = {rows(p.end), width};
-        Handle sspace(H5Screate_simple(rank, src_dims, nullptr), H5Sclose);
-        const hsize_t s0[2] = {rows(p.a), 0}, d0[2] = {dst, 0}, cnt[2] = {n, width};
-        if (!sspace.valid() || H5Sselect_hyperslab(sspace.get(), H5S_SELECT_SET, s0, nullptr, cnt, nullptr) < 0 ||
-            H5Sselect_hyperslab(vspace.get(), H5S_SELECT_SET, d0, nullptr, cnt, nullptr) < 0 ||
-            H5Pset_virtual(dcpl.get(), vspace.get(), p.spec->mapped_name.c_str(), where.c_str(), sspace.get()) < 0)
-          hdf5::write_fail(file, where, "cannot map rows of " + p.spec->mapped_name);
-        dst += n;
-      }
-      H5Sselect_all(vspace.get());
-      Handle dset(H5Dcreate2(cf.group(group), name.c_str(), cf.types().file(dtype), vspace.get(), H5P_DEFAULT,
-                             dcpl.get(), H5P_DEFAULT),
-                  H5Dclose);
-      if (!dset.valid()) hdf5::write_fail(file, where, "cannot create virtual dataset");
-      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "units", d.at("units").get<std::string>());
-      hdf5::write_str_attr(file, cf.types(), dset.get(), where, "description", d.at("description").get<std::string>());
-      if (dset.close() < 0) hdf5::write_fail(file, where, "cannot close virtual dataset");
+      std::vector<hdf5::VirtualSource> sources;
+      for (const auto& p : ps) sources.push_back({p.spec->mapped_name, rows(p.end), rows(p.a), rows(p.b) - rows(p.a)});
+      cf.virtual_table(group, name, n_total, sources);
     }
   }
 }
@@ -119,8 +87,8 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   for (const auto& spec : pieces) {
     auto& r = readers[spec.file];
     if (!r) r = std::make_unique<DatasetReader>(spec.file);
-    Piece p{&spec, r.get(), Handle(H5Fopen(spec.file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose), {}, {}, {}};
-    if (!p.fid.valid()) throw meshkit::InputError(spec.file.string(), "", "cannot open as HDF5");
+    Piece p{&spec, r.get(), std::make_unique<hdf5::CheckedFile>(spec.file.string()), {}, {}, {}};
+    p.source->open();
     p.a = r->rows_at(spec.first_frame);
     p.b = r->rows_at(spec.first_frame + spec.frame_count);
     p.end = r->rows_at(r->frame_count());
@@ -163,9 +131,9 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
   std::uint64_t frame = 0;
   for (const auto& p : ps) {
     const auto& s = *p.spec;
-    const auto time = read_source<double>(p, "/frames/time_s", H5T_NATIVE_DOUBLE, s.first_frame, s.frame_count);
-    const auto ncount = read_source<std::uint32_t>(p, "/frames/node_count", H5T_NATIVE_UINT32, s.first_frame, s.frame_count);
-    const auto lcount = read_source<std::uint32_t>(p, "/frames/link_count", H5T_NATIVE_UINT32, s.first_frame, s.frame_count);
+    const auto time = read_source<double>(p, "/frames/time_s", s.first_frame, s.frame_count);
+    const auto ncount = read_source<std::uint32_t>(p, "/frames/node_count", s.first_frame, s.frame_count);
+    const auto lcount = read_source<std::uint32_t>(p, "/frames/link_count", s.first_frame, s.frame_count);
     std::uint64_t st = at.states, lk = at.links;
     for (std::uint64_t k = 0; k < s.frame_count; ++k) {
       f_time->put(time[k]);
@@ -178,11 +146,11 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
       lk += lcount[k];
     }
     const hsize_t nl = p.b.links - p.a.links, np = p.b.paths - p.a.paths;
-    for (auto v : read_source<std::uint64_t>(p, "/links/path_count", H5T_NATIVE_UINT64, p.a.links, nl)) path_count += v;
+    for (auto v : read_source<std::uint64_t>(p, "/links/path_count", p.a.links, nl)) path_count += v;
     if (paths) {
-      for (auto v : read_source<std::uint64_t>(p, "/links/path_offset", H5T_NATIVE_UINT64, p.a.links, nl))
+      for (auto v : read_source<std::uint64_t>(p, "/links/path_offset", p.a.links, nl))
         l_poff->put(std::uint64_t{v - p.a.paths + at.paths});
-      for (auto v : read_source<std::uint64_t>(p, "/paths/interaction_offset", H5T_NATIVE_UINT64, p.a.paths, np))
+      for (auto v : read_source<std::uint64_t>(p, "/paths/interaction_offset", p.a.paths, np))
         p_ioff->put(std::uint64_t{v - p.a.interactions + at.interactions});
     }
     cf.maybe_flush();
@@ -193,7 +161,7 @@ void write_virtual_dataset(const std::filesystem::path& out, const DatasetHeader
     at.interactions += p.b.interactions - p.a.interactions;
   }
 
-  map_row_tables(cf, file, header.store, K, ps, total);
+  map_row_tables(cf, header.store, K, ps, total);
 
   cf.flush_all();
   write_node_and_object_tables(cf, nodes, objects);

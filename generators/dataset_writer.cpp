@@ -1,13 +1,11 @@
 // Streaming HDF5 writer of the channel dataset. The datasets, their file types,
 // shapes, chunk shapes, units and descriptions come from the embedded schema
 // (schemas/raysweep_dataset.schema.json) through the shared column machinery
-// (hdf5_columns.hpp); this file only knows which record field goes into which
+// (hdf5/column_file.hpp); this file only knows which record field goes into which
 // dataset and checks at creation that the schema's dtype is the one it writes.
 #include "generators/dataset_writer.hpp"
 
 #include "generators/dataset_tables.hpp"
-
-#include <hdf5.h>
 
 #include <algorithm>
 #include <cmath>
@@ -15,7 +13,7 @@
 #include <stdexcept>
 
 #include "generators/dataset_schema.hpp"
-#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5/column_file.hpp"
 #include "generators/store_level.hpp"
 
 namespace raysweep::generators {

@@ -1,10 +1,8 @@
 // The ns-3 lookup table (raysweep-ns3-table): streaming writer and in-memory
 // reader. Datasets, file types, shapes, chunk shapes, units and descriptions come
 // from the embedded schema (schemas/raysweep_ns3_table.schema.json) through the
-// shared column machinery (generators/hdf5_columns.hpp).
+// shared column machinery (generators/hdf5/column_file.hpp).
 #include "generators/ns3_table.hpp"
-
-#include <hdf5.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,8 +11,8 @@
 #include <utility>
 
 #include "generators/dataset_schema.hpp"
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/hdf5/column_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {
@@ -221,22 +219,22 @@ Ns3Table Ns3Table::load(const std::string& path) {
   t.ids_ = r.dataset("/nodes/id").strings();
   const std::uint64_t n = t.ids_.size();
   if (n > 65535) r.fail("/nodes/id", std::to_string(n) + " nodes: more than the 65535 this reader supports");
-  for (auto k : r.dataset("/nodes/kind").read_all<std::uint8_t>(H5T_NATIVE_UINT8, n)) {
+  for (auto k : r.dataset("/nodes/kind").read_all<std::uint8_t>(n)) {
     if (k > 1) r.fail("/nodes/kind", "unknown node kind " + std::to_string(k));
     t.kinds_.push_back(static_cast<NodeKind>(k));
   }
 
   const hdf5::Dataset time = r.dataset("/frames/time_s");
   const hsize_t frames = time.rows();
-  t.time_ = time.read_all<double>(H5T_NATIVE_DOUBLE, frames);
+  t.time_ = time.read_all<double>(frames);
   for (std::size_t f = 0; f < frames; ++f)
     if (!std::isfinite(t.time_[f]) || (f > 0 && t.time_[f] <= t.time_[f - 1]))
       r.fail("/frames/time_s", "row " + std::to_string(f) + ": not finite or not after the previous frame's time");
   t.step_ = median_step(t.time_);
   // offsets[f] must be the running sum of the counts; the sum closes the table.
   auto csr = [&](const std::string& offset, const std::string& count, std::vector<std::uint64_t>& out) {
-    out = r.dataset(offset).read_all<std::uint64_t>(H5T_NATIVE_UINT64, frames);
-    const auto counts = r.dataset(count).read_all<std::uint64_t>(H5T_NATIVE_UINT64, frames);
+    out = r.dataset(offset).read_all<std::uint64_t>(frames);
+    const auto counts = r.dataset(count).read_all<std::uint64_t>(frames);
     std::uint64_t sum = 0;
     for (std::size_t f = 0; f < frames; sum += counts[f++])
       if (out[f] != sum)
@@ -248,9 +246,9 @@ Ns3Table Ns3Table::load(const std::string& path) {
   csr("/frames/pair_offset", "/frames/pair_count", t.pair_offset_);
 
   const std::uint64_t s = t.state_offset_.back();
-  const auto node = r.dataset("/node_states/node").read_all<std::uint32_t>(H5T_NATIVE_UINT32, s);
-  const auto pos = r.dataset("/node_states/position").read_all<double>(H5T_NATIVE_DOUBLE, s, 3);
-  const auto vel = r.dataset("/node_states/velocity").read_all<float>(H5T_NATIVE_FLOAT, s, 3);
+  const auto node = r.dataset("/node_states/node").read_all<std::uint32_t>(s);
+  const auto pos = r.dataset("/node_states/position").read_all<double>(s, 3);
+  const auto vel = r.dataset("/node_states/velocity").read_all<float>(s, 3);
   t.states_.resize(s);
   for (std::size_t i = 0; i < s; ++i) {
     NodeState& st = t.states_[i];
@@ -269,10 +267,10 @@ Ns3Table Ns3Table::load(const std::string& path) {
     }
 
   const std::uint64_t p = t.pair_offset_.back();
-  const auto a = r.dataset("/pairs/a").read_all<std::uint32_t>(H5T_NATIVE_UINT32, p);
-  const auto b = r.dataset("/pairs/b").read_all<std::uint32_t>(H5T_NATIVE_UINT32, p);
-  t.gain_ = r.dataset("/pairs/gain_db").read_all<float>(H5T_NATIVE_FLOAT, p);
-  t.los_ = r.dataset("/pairs/los_class").read_all<std::uint8_t>(H5T_NATIVE_UINT8, p);
+  const auto a = r.dataset("/pairs/a").read_all<std::uint32_t>(p);
+  const auto b = r.dataset("/pairs/b").read_all<std::uint32_t>(p);
+  t.gain_ = r.dataset("/pairs/gain_db").read_all<float>(p);
+  t.los_ = r.dataset("/pairs/los_class").read_all<std::uint8_t>(p);
   t.key_.resize(p);
   for (std::size_t f = 0; f < frames; ++f)
     for (std::uint64_t i = t.pair_offset_[f]; i < t.pair_offset_[f + 1]; ++i) {
@@ -292,8 +290,8 @@ Ns3Table Ns3Table::load(const std::string& path) {
     const auto count = r.attr<std::uint64_t>("/spectrum", "band_count");
     t.bands_.subcarriers_per_band = static_cast<std::uint32_t>(r.attr<std::uint64_t>("/spectrum", "subcarriers_per_band"));
     t.bands_.band_width_hz = r.attr<double>("/spectrum", "band_width_hz");
-    t.bands_.center_hz = r.dataset("/spectrum/center_hz").read_all<double>(H5T_NATIVE_DOUBLE, count);
-    if (count) t.band_gain_ = r.dataset("/spectrum/gain_db").read_all<float>(H5T_NATIVE_FLOAT, p, count);
+    t.bands_.center_hz = r.dataset("/spectrum/center_hz").read_all<double>(count);
+    if (count) t.band_gain_ = r.dataset("/spectrum/gain_db").read_all<float>(p, count);
   }
   return t;
 }

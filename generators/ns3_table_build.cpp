@@ -1,16 +1,13 @@
 // build_ns3_table(): a channel dataset -> the ns-3 lookup table. The links and
 // node states come from the SINR generator's loader (ChannelTrace); the
 // frequency responses, when present, are read a frame at a time from /cfr/h.
-#include <hdf5.h>
-
 #include <cmath>
 #include <complex>
 #include <limits>
 #include <optional>
 #include <stdexcept>
 
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/store_level.hpp"
 #include "generators/sinr/channel_trace.hpp"
@@ -27,7 +24,7 @@ float power_db(double mean_power) {
 // The /cfr group of a channel dataset, when it has one.
 class CfrReader {
  public:
-  explicit CfrReader(const std::string& path) : file_(path), types_(path) {
+  explicit CfrReader(const std::string& path) : file_(path) {
     hdf5::QuietHdf5 quiet;
     file_.open();
     if (!file_.exists("/cfr")) return;
@@ -50,12 +47,11 @@ class CfrReader {
 
   std::vector<std::complex<float>> read(hsize_t first, hsize_t count) const {
     hdf5::QuietHdf5 quiet;
-    return h_->read<std::complex<float>>(types_.mem(hdf5::Dtype::c64), first, count, subcarriers_);
+    return h_->read<std::complex<float>>(first, count, subcarriers_);
   }
 
  private:
   hdf5::CheckedFile file_;
-  hdf5::Types types_;
   std::optional<hdf5::Dataset> h_;
   std::uint32_t subcarriers_ = 0;
   double spacing_hz_ = 0, carrier_hz_ = 0;

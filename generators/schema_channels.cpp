@@ -29,9 +29,9 @@ class ChannelValidator : public Validator {
   bool node_states_sorted_ = false;
 
   void check_times() {
-    const hid_t ds = dset("/frames/time_s");
-    if (ds < 0) return;
-    const auto t = read_f64(ds, "/frames/time_s", 0, dataset_dims(ds, "/frames/time_s")[0]);
+    const hdf5::Dataset* ds = dset("/frames/time_s");
+    if (!ds) return;
+    const auto t = ds->read<double>(0, ds->rows());
     Tally bad;
     for (std::size_t i = 0; i < t.size(); ++i) {
       if (!std::isfinite(t[i]))
@@ -44,12 +44,12 @@ class ChannelValidator : public Validator {
 
   // Node states of a frame sorted by node.
   void check_node_states() {
-    const hid_t off = dset("/frames/node_offset"), cnt = dset("/frames/node_count"), node = dset("/node_states/node");
-    if (off < 0 || cnt < 0 || node < 0 || !offsets_ok_.count("/frames/node_offset")) return;
-    const hsize_t f = dataset_dims(off, "/frames/node_offset")[0];
-    const auto offset = read_u64(off, "/frames/node_offset", 0, f);
-    const auto count = read_u64(cnt, "/frames/node_count", 0, f);
-    nodes_ = read_u64(node, "/node_states/node", 0, dataset_dims(node, "/node_states/node")[0]);
+    const hdf5::Dataset* off = dset("/frames/node_offset"), *cnt = dset("/frames/node_count"), *node = dset("/node_states/node");
+    if (!off || !cnt || !node || !offsets_ok_.count("/frames/node_offset")) return;
+    const hsize_t f = off->rows();
+    const auto offset = off->read<std::uint64_t>(0, f);
+    const auto count = cnt->read<std::uint64_t>(0, f);
+    nodes_ = node->read<std::uint64_t>(0, node->rows());
     node_offset_ = offset;
     node_count_ = count;
     Tally bad;
@@ -68,37 +68,37 @@ class ChannelValidator : public Validator {
   }
 
   void check_links() {
-    const hid_t tx = dset("/links/tx"), rx = dset("/links/rx");
-    if (tx < 0 || rx < 0) return;
-    const hid_t fr = dset("/links/frame"), flags = dset("/links/flags"), pc = dset("/links/path_count");
-    const hid_t gc = dset("/links/gain_coherent_db"), gi = dset("/links/gain_incoherent_db");
-    const hid_t loff = dset("/frames/link_offset"), lcnt = dset("/frames/link_count");
-    const bool frames_ok = fr >= 0 && loff >= 0 && lcnt >= 0 && offsets_ok_.count("/frames/link_offset");
+    const hdf5::Dataset* tx = dset("/links/tx"), *rx = dset("/links/rx");
+    if (!tx || !rx) return;
+    const hdf5::Dataset* fr = dset("/links/frame"), *flags = dset("/links/flags"), *pc = dset("/links/path_count");
+    const hdf5::Dataset* gc = dset("/links/gain_coherent_db"), *gi = dset("/links/gain_incoherent_db");
+    const hdf5::Dataset* loff = dset("/frames/link_offset"), *lcnt = dset("/frames/link_count");
+    const bool frames_ok = fr && loff && lcnt && offsets_ok_.count("/frames/link_offset");
     const bool presence = frames_ok && node_states_sorted_ && node_offset_.size() == dim("F").value_or(~hsize_t{0});
     std::vector<std::uint64_t> link_offset, link_count;
     if (frames_ok) {
-      const hsize_t f = dataset_dims(loff, "/frames/link_offset")[0];
-      link_offset = read_u64(loff, "/frames/link_offset", 0, f);
-      link_count = read_u64(lcnt, "/frames/link_count", 0, f);
+      const hsize_t f = loff->rows();
+      link_offset = loff->read<std::uint64_t>(0, f);
+      link_count = lcnt->read<std::uint64_t>(0, f);
     }
-    const hsize_t rows = dataset_dims(tx, "/links/tx")[0];
+    const hsize_t rows = tx->rows();
     Tally order, frame_bad, sorted, absent, oor_paths, no_path_gain;
     std::uint64_t f = 0;
     for (hsize_t start = 0; start < rows; start += kBlockRows) {
       const hsize_t n = std::min(kBlockRows, rows - start);
-      const auto t = read_u64(tx, "/links/tx", start, n);
-      const auto r = read_u64(rx, "/links/rx", start, n);
+      const auto t = tx->read<std::uint64_t>(start, n);
+      const auto r = rx->read<std::uint64_t>(start, n);
       std::vector<std::uint64_t> frame, fl, paths;
       std::vector<double> gain_c, gain_i;
-      if (frames_ok) frame = read_u64(fr, "/links/frame", start, n);
-      if (flags >= 0 && pc >= 0) {
-        fl = read_u64(flags, "/links/flags", start, n);
-        paths = read_u64(pc, "/links/path_count", start, n);
+      if (frames_ok) frame = fr->read<std::uint64_t>(start, n);
+      if (flags && pc) {
+        fl = flags->read<std::uint64_t>(start, n);
+        paths = pc->read<std::uint64_t>(start, n);
       }
-      if (pc >= 0 && gc >= 0 && gi >= 0) {
-        if (paths.empty()) paths = read_u64(pc, "/links/path_count", start, n);
-        gain_c = read_f64(gc, "/links/gain_coherent_db", start, n);
-        gain_i = read_f64(gi, "/links/gain_incoherent_db", start, n);
+      if (pc && gc && gi) {
+        if (paths.empty()) paths = pc->read<std::uint64_t>(start, n);
+        gain_c = gc->read<double>(start, n);
+        gain_i = gi->read<double>(start, n);
       }
       for (hsize_t i = 0; i < n; ++i) {
         const std::uint64_t row = start + i;
@@ -136,10 +136,10 @@ void validate_channels(const hdf5::CheckedFile& file, const nlohmann::json& sche
 }
 
 // Summary of a channel dataset (format checked by the caller).
-nlohmann::json channel_info(const InfoReader& r) {
+nlohmann::json channel_info(const hdf5::CheckedFile& r) {
   nlohmann::json info = identity_info(r, kDatasetFormat);
-  info["carrier_hz"] = r.num_attr<double>("/", "carrier_hz").value_or(0.0);
-  info["bandwidth_hz"] = r.num_attr<double>("/", "bandwidth_hz").value_or(0.0);
+  info["carrier_hz"] = r.attr_if<double>("/", "carrier_hz").value_or(0.0);
+  info["bandwidth_hz"] = r.attr_if<double>("/", "bandwidth_hz").value_or(0.0);
 
   // Frames and their time span.
   {
@@ -152,7 +152,7 @@ nlohmann::json channel_info(const InfoReader& r) {
   add_node_kinds(info, r);
 
   // Links: LoS classes, flags, paths.
-  const hsize_t links = r.rows("/links/los_class");
+  const hsize_t links = r.column_rows("/links/los_class");
   std::uint64_t los[3] = {0, 0, 0}, other_class = 0, cached = 0, out_of_range = 0;
   r.scan_u64("/links/los_class", [&](const std::vector<std::uint64_t>& v) {
     for (auto c : v) (c < 3 ? los[c] : other_class) += 1;
@@ -166,9 +166,9 @@ nlohmann::json channel_info(const InfoReader& r) {
   // Files below the paths level store none: their links' path counts say how many the gains sum.
   const bool paths_stored = r.exists("/paths");
   const hsize_t paths =
-      paths_stored ? r.rows("/paths/tau_s") : r.num_attr<std::uint64_t>("/", "path_count").value_or(0);
-  info["store"] = r.str_attr("store", "full");
-  info["paths_top_k"] = r.num_attr<std::uint64_t>("/", "paths_top_k").value_or(0);
+      paths_stored ? r.column_rows("/paths/tau_s") : r.attr_if<std::uint64_t>("/", "path_count").value_or(0);
+  info["store"] = root_str(r, "store", "full");
+  info["paths_top_k"] = r.attr_if<std::uint64_t>("/", "paths_top_k").value_or(0);
   info["paths_stored"] = paths_stored;
   info["links"] = links;
   info["los_counts"] = {{"LOS", los[0]}, {"NLOSV", los[1]}, {"NLOS", los[2]}};
@@ -183,8 +183,8 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["cached_links"] = cached;
   info["out_of_range_links"] = out_of_range;
   info["paths"] = paths;
-  info["interactions"] = r.exists("/interactions/type") ? r.rows("/interactions/type") : 0;
-  info["objects"] = r.exists("/objects/name") ? r.rows("/objects/name") : 0;
+  info["interactions"] = r.exists("/interactions/type") ? r.column_rows("/interactions/type") : 0;
+  info["objects"] = r.exists("/objects/name") ? r.column_rows("/objects/name") : 0;
   info["mean_paths_per_link"] = links ? static_cast<double>(paths) / static_cast<double>(links) : 0.0;
   const std::uint64_t in_range = links - std::min<std::uint64_t>(links, out_of_range);
   info["mean_paths_per_in_range_link"] = in_range ? static_cast<double>(paths) / static_cast<double>(in_range) : 0.0;
@@ -194,17 +194,17 @@ nlohmann::json channel_info(const InfoReader& r) {
   info["has_cfr"] = has_cfr;
   std::uint64_t subcarriers = 0;
   if (has_cfr) {
-    r.file.group("/cfr");
-    subcarriers = r.num_attr<std::uint64_t>("/cfr", "subcarriers").value_or(0);
+    r.group("/cfr");
+    subcarriers = r.attr_if<std::uint64_t>("/cfr", "subcarriers").value_or(0);
   }
   info["subcarriers"] = subcarriers;
   // Shard files of a split sweep say which part of it they hold.
-  if (r.file.has_attr("/", "shard")) {
-    const std::string text = r.str_attr("shard", "");
+  if (r.has_attr("/", "shard")) {
+    const std::string text = root_str(r, "shard", "");
     if (nlohmann::json::accept(text)) info["shard"] = nlohmann::json::parse(text);
   }
 
-  add_file_size(info, r.path, links, "bytes_per_link");
+  add_file_size(info, r.path(), links, "bytes_per_link");
   return info;
 }
 

@@ -30,11 +30,11 @@ class FeaturesValidator : public Validator {
   }
 
   void check_rows() {
-    const hid_t link = dset("/links/link"), frame = dset("/links/frame");
-    if (link < 0 || frame < 0) return;
-    const hsize_t m = dataset_dims(link, "/links/link")[0];
-    const auto l = read_u64(link, "/links/link", 0, m);
-    const auto f = read_u64(frame, "/links/frame", 0, m);
+    const hdf5::Dataset* link = dset("/links/link"), *frame = dset("/links/frame");
+    if (!link || !frame) return;
+    const hsize_t m = link->rows();
+    const auto l = link->read<std::uint64_t>(0, m);
+    const auto f = frame->read<std::uint64_t>(0, m);
     const std::uint64_t L = root("dataset_link_count"), F = root("dataset_frame_count");
     Tally order, range;
     for (hsize_t i = 0; i < m; ++i) {
@@ -47,17 +47,17 @@ class FeaturesValidator : public Validator {
 
   // Slots below count hold a vehicle class of the table, the others 255.
   void check_slots() {
-    const hid_t count = dset("/vehicles/count"), vclass = dset("/vehicles/vclass");
-    if (count < 0 || vclass < 0) return;
+    const hdf5::Dataset* count = dset("/vehicles/count"), *vclass = dset("/vehicles/vclass");
+    if (!count || !vclass) return;
     const auto k = dim("K");
     if (!k || *k == 0) return;
-    const hsize_t m = dataset_dims(count, "/vehicles/count")[0];
+    const hsize_t m = count->rows();
     const auto& table = schema_.at("codes").at("vehicle_class").at("values");
     Tally bad;
     for (hsize_t start = 0; start < m; start += kBlockRows) {
       const hsize_t n = std::min(kBlockRows, m - start);
-      const auto c = read_u64(count, "/vehicles/count", start, n);
-      const auto v = read_rows<std::uint64_t>(vclass, "/vehicles/vclass", H5T_NATIVE_UINT64, start, n, *k);
+      const auto c = count->read<std::uint64_t>(start, n);
+      const auto v = vclass->read<std::uint64_t>(start, n, *k);
       for (hsize_t r = 0; r < n; ++r) {
         if (c[r] > *k) bad.add(start + r, "count " + std::to_string(c[r]) + " > max_vehicles");
         for (hsize_t s = 0; s < *k; ++s) {
@@ -77,20 +77,20 @@ void validate_features(const hdf5::CheckedFile& file, const nlohmann::json& sche
   FeaturesValidator(file, schema, problems).run();
 }
 
-nlohmann::json features_info(const InfoReader& r) {
+nlohmann::json features_info(const hdf5::CheckedFile& r) {
   nlohmann::json info = identity_info(r, kFeaturesFormat);
   for (const char* k : {"along_cells", "across_cells", "max_vehicles", "frame_stride", "dataset_link_count"})
-    info[k] = r.num_attr<std::uint64_t>("/", k).value_or(0);
+    info[k] = r.attr_if<std::uint64_t>("/", k).value_or(0);
   for (const char* k : {"half_width_m", "height_scale_m", "map_resolution_m"})
-    info[k] = r.num_attr<double>("/", k).value_or(0.0);
-  const hsize_t rows = r.rows("/links/link");
+    info[k] = r.attr_if<double>("/", k).value_or(0.0);
+  const hsize_t rows = r.column_rows("/links/link");
   info["rows"] = rows;
   std::uint64_t vehicles = 0;
   r.scan_u64("/vehicles/count", [&](const std::vector<std::uint64_t>& v) {
     for (auto c : v) vehicles += c;
   });
   info["mean_vehicles_per_row"] = rows ? static_cast<double>(vehicles) / static_cast<double>(rows) : 0.0;
-  add_file_size(info, r.path, rows, "bytes_per_row");
+  add_file_size(info, r.path(), rows, "bytes_per_row");
   return info;
 }
 

@@ -39,16 +39,16 @@ void validate_ns3_table(const hdf5::CheckedFile& file, const nlohmann::json& sch
 }
 
 // Summary of an ns-3 lookup table (format checked by the caller).
-nlohmann::json ns3_table_info(const InfoReader& r) {
+nlohmann::json ns3_table_info(const hdf5::CheckedFile& r) {
   nlohmann::json info = identity_info(r, kNs3TableFormat);
   for (const char* k : {"carrier_hz", "bandwidth_hz", "time_start_s", "time_end_s", "frame_step_s"})
-    info[k] = r.num_attr<double>("/", k).value_or(0.0);
-  const auto source = r.num_attr<std::uint64_t>("/", "gain_source").value_or(255);
+    info[k] = r.attr_if<double>("/", k).value_or(0.0);
+  const auto source = r.attr_if<std::uint64_t>("/", "gain_source").value_or(255);
   info["gain_source"] = source <= 1 ? gain_source_name(static_cast<GainSource>(source)) : "unknown";
   add_node_kinds(info, r);
-  info["frames"] = r.rows("/frames/time_s");
-  info["node_states"] = r.rows("/node_states/node");
-  const hsize_t pairs = r.rows("/pairs/los_class");
+  info["frames"] = r.column_rows("/frames/time_s");
+  info["node_states"] = r.column_rows("/node_states/node");
+  const hsize_t pairs = r.column_rows("/pairs/los_class");
   std::uint64_t los[3] = {0, 0, 0}, other_class = 0;
   r.scan_u64("/pairs/los_class", [&](const std::vector<std::uint64_t>& v) {
     for (auto c : v) (c < 3 ? los[c] : other_class) += 1;
@@ -58,12 +58,12 @@ nlohmann::json ns3_table_info(const InfoReader& r) {
   if (other_class) info["los_counts"]["invalid"] = other_class;
   std::uint64_t bands = 0;
   if (r.exists("/spectrum")) {
-    r.file.group("/spectrum");
-    bands = r.num_attr<std::uint64_t>("/spectrum", "band_count").value_or(0);
-    info["band_width_hz"] = r.num_attr<double>("/spectrum", "band_width_hz").value_or(0.0);
+    r.group("/spectrum");
+    bands = r.attr_if<std::uint64_t>("/spectrum", "band_count").value_or(0);
+    info["band_width_hz"] = r.attr_if<double>("/spectrum", "band_width_hz").value_or(0.0);
   }
   info["bands"] = bands;
-  add_file_size(info, r.path, pairs, "bytes_per_pair_frame");
+  add_file_size(info, r.path(), pairs, "bytes_per_pair_frame");
   return info;
 }
 

@@ -33,14 +33,14 @@ class SinrValidator : public Validator {
 
  private:
   void check_transmissions() {
-    const hid_t start = dset("/transmissions/start_s"), dur = dset("/transmissions/duration_s");
-    const hid_t band = dset("/transmissions/band_hz"), rat = dset("/transmissions/rat");
+    const hdf5::Dataset* start = dset("/transmissions/start_s"), *dur = dset("/transmissions/duration_s");
+    const hdf5::Dataset* band = dset("/transmissions/band_hz"), *rat = dset("/transmissions/rat");
     Tally order, duration, band_bad, rat_none;
     double prev = -std::numeric_limits<double>::infinity();
-    if (start >= 0) {
-      const hsize_t rows = dataset_dims(start, "/transmissions/start_s")[0];
+    if (start) {
+      const hsize_t rows = start->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
-        const auto t = read_f64(start, "/transmissions/start_s", s, std::min(kBlockRows, rows - s));
+        const auto t = start->read<double>(s, std::min(kBlockRows, rows - s));
         for (std::size_t i = 0; i < t.size(); ++i) {
           if (!std::isfinite(t[i]))
             order.add(s + i, "not finite");
@@ -50,19 +50,19 @@ class SinrValidator : public Validator {
         }
       }
     }
-    if (dur >= 0) {
-      const hsize_t rows = dataset_dims(dur, "/transmissions/duration_s")[0];
+    if (dur) {
+      const hsize_t rows = dur->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
-        const auto d = read_f64(dur, "/transmissions/duration_s", s, std::min(kBlockRows, rows - s));
+        const auto d = dur->read<double>(s, std::min(kBlockRows, rows - s));
         for (std::size_t i = 0; i < d.size(); ++i)
           if (!(std::isfinite(d[i]) && d[i] > 0)) duration.add(s + i, std::to_string(d[i]) + " s");
       }
     }
-    if (band >= 0) {
-      const hsize_t rows = dataset_dims(band, "/transmissions/band_hz")[0];
+    if (band) {
+      const hsize_t rows = band->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
         const hsize_t n = std::min(kBlockRows, rows - s);
-        const auto b = read_rows<double>(band, "/transmissions/band_hz", H5T_NATIVE_DOUBLE, s, n, 2);
+        const auto b = band->read<double>(s, n, 2);
         for (hsize_t i = 0; i < n; ++i) {
           const double lo = b[2 * i], hi = b[2 * i + 1];
           if (!(std::isfinite(lo) && std::isfinite(hi) && lo < hi))
@@ -70,10 +70,10 @@ class SinrValidator : public Validator {
         }
       }
     }
-    if (rat >= 0) {
-      const hsize_t rows = dataset_dims(rat, "/transmissions/rat")[0];
+    if (rat) {
+      const hsize_t rows = rat->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
-        const auto r = read_u64(rat, "/transmissions/rat", s, std::min(kBlockRows, rows - s));
+        const auto r = rat->read<std::uint64_t>(s, std::min(kBlockRows, rows - s));
         for (std::size_t i = 0; i < r.size(); ++i)
           if (r[i] == 0) rat_none.add(s + i, "rat 0");
       }
@@ -88,20 +88,19 @@ class SinrValidator : public Validator {
   // when the dataset failed the structural checks.
   std::optional<BlockReader<std::uint64_t>> tx_u64(const std::string& name) const {
     const std::string p = "/transmissions/" + name;
-    const hid_t ds = dset(p);
-    if (ds < 0) return std::nullopt;
-    return BlockReader<std::uint64_t>(ds, p, H5T_NATIVE_UINT64, dataset_dims(ds, p)[0]);
+    const hdf5::Dataset* ds = dset(p);
+    if (!ds) return std::nullopt;
+    return BlockReader<std::uint64_t>(*ds, ds->rows());
   }
 
   void check_receptions() {
-    const hid_t tr = dset("/receptions/transmission"), tx = dset("/receptions/tx"), rx = dset("/receptions/rx");
-    if (tr < 0) return;
-    const hsize_t rows = dataset_dims(tr, "/receptions/transmission")[0];
+    const hdf5::Dataset* tr = dset("/receptions/transmission"), *tx = dset("/receptions/tx"), *rx = dset("/receptions/rx");
+    if (!tr) return;
+    const hsize_t rows = tr->rows();
     const hsize_t transmissions = dim("T").value_or(0);
     auto t_node = tx_u64("node"), t_rat = tx_u64("rat"), t_packet = tx_u64("packet"), t_attempt = tx_u64("attempt");
     std::optional<BlockReader<double>> t_start;
-    if (const hid_t ds = dset("/transmissions/start_s"); ds >= 0)
-      t_start.emplace(ds, "/transmissions/start_s", H5T_NATIVE_DOUBLE, dataset_dims(ds, "/transmissions/start_s")[0]);
+    if (const hdf5::Dataset* ds = dset("/transmissions/start_s")) t_start.emplace(*ds, ds->rows());
 
     // The RAT of every transmission, for the inter_rat flag of overlaps (random access).
     std::vector<std::uint8_t> rat_of;
@@ -110,32 +109,32 @@ class SinrValidator : public Validator {
 
     // Overlap rows, when their offsets passed (so every range lies inside /interferers).
     const bool overlaps = offsets_ok_.count("/receptions/overlap_offset") > 0;
-    const hid_t o_tr = dset("/interferers/transmission"), o_counted = dset("/interferers/counted");
-    const hid_t o_inter = dset("/interferers/inter_rat");
+    const hdf5::Dataset* o_tr = dset("/interferers/transmission"), *o_counted = dset("/interferers/counted");
+    const hdf5::Dataset* o_inter = dset("/interferers/inter_rat");
     std::optional<BlockReader<std::uint64_t>> ov_tr, ov_counted, ov_inter;
     const hsize_t x = dim("X").value_or(0);
-    if (overlaps && o_tr >= 0) ov_tr.emplace(o_tr, "/interferers/transmission", H5T_NATIVE_UINT64, x);
-    if (overlaps && o_counted >= 0) ov_counted.emplace(o_counted, "/interferers/counted", H5T_NATIVE_UINT64, x);
-    if (overlaps && o_inter >= 0) ov_inter.emplace(o_inter, "/interferers/inter_rat", H5T_NATIVE_UINT64, x);
+    if (overlaps && o_tr) ov_tr.emplace(*o_tr, x);
+    if (overlaps && o_counted) ov_counted.emplace(*o_counted, x);
+    if (overlaps && o_inter) ov_inter.emplace(*o_inter, x);
 
     auto column = [&](const char* name, hsize_t start, hsize_t n) {
       const std::string p = std::string("/receptions/") + name;
-      const hid_t ds = dset(p);
-      return ds < 0 ? std::vector<std::uint64_t>() : read_u64(ds, p, start, n);
+      const hdf5::Dataset* ds = dset(p);
+      return ds ? ds->read<std::uint64_t>(start, n) : std::vector<std::uint64_t>();
     };
     Tally unsorted, self, tx_bad, rat_bad, packet_bad, attempt_bad, time_bad, count_bad, own, inter_bad;
     std::pair<std::uint64_t, std::uint64_t> prev{0, 0};
     for (hsize_t start = 0; start < rows; start += kBlockRows) {
       const hsize_t n = std::min(kBlockRows, rows - start);
-      const auto t = read_u64(tr, "/receptions/transmission", start, n);
-      const auto s = tx >= 0 ? read_u64(tx, "/receptions/tx", start, n) : std::vector<std::uint64_t>();
-      const auto r = rx >= 0 ? read_u64(rx, "/receptions/rx", start, n) : std::vector<std::uint64_t>();
+      const auto t = tr->read<std::uint64_t>(start, n);
+      const auto s = tx ? tx->read<std::uint64_t>(start, n) : std::vector<std::uint64_t>();
+      const auto r = rx ? rx->read<std::uint64_t>(start, n) : std::vector<std::uint64_t>();
       const auto rat = column("rat", start, n), packet = column("packet", start, n), attempt = column("attempt", start, n);
       const auto counted = column("interferers", start, n);
       const auto ocount = overlaps ? column("overlap_count", start, n) : std::vector<std::uint64_t>();
       const auto ooffset = overlaps ? column("overlap_offset", start, n) : std::vector<std::uint64_t>();
       std::vector<double> time;
-      if (const hid_t ds = dset("/receptions/time_s"); ds >= 0) time = read_f64(ds, "/receptions/time_s", start, n);
+      if (const hdf5::Dataset* ds = dset("/receptions/time_s")) time = ds->read<double>(start, n);
       for (hsize_t i = 0; i < n; ++i) {
         const std::uint64_t row = start + i;
         if (!r.empty()) {
@@ -191,15 +190,15 @@ class SinrValidator : public Validator {
   // received <= packets; prr = received / packets (NaN when packets = 0); links tx != rx.
   void check_prr(const std::string& group) {
     const std::string g = "/" + group + "/";
-    const hid_t pk = dset(g + "packets"), rc = dset(g + "received"), pr = dset(g + "prr");
-    const hid_t tx = dset(g + "tx"), rx = dset(g + "rx");
+    const hdf5::Dataset* pk = dset(g + "packets"), *rc = dset(g + "received"), *pr = dset(g + "prr");
+    const hdf5::Dataset* tx = dset(g + "tx"), *rx = dset(g + "rx");
     Tally too_many, bad_prr, self;
-    if (pk >= 0 && rc >= 0) {
-      const hsize_t rows = dataset_dims(pk, g + "packets")[0];
+    if (pk && rc) {
+      const hsize_t rows = pk->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
         const hsize_t n = std::min(kBlockRows, rows - s);
-        const auto p = read_u64(pk, g + "packets", s, n), r = read_u64(rc, g + "received", s, n);
-        const auto q = pr >= 0 ? read_f64(pr, g + "prr", s, n) : std::vector<double>();
+        const auto p = pk->read<std::uint64_t>(s, n), r = rc->read<std::uint64_t>(s, n);
+        const auto q = pr ? pr->read<double>(s, n) : std::vector<double>();
         for (hsize_t i = 0; i < n; ++i) {
           if (r[i] > p[i]) too_many.add(s + i, std::to_string(r[i]) + " received of " + std::to_string(p[i]) + " packets");
           if (q.empty()) continue;
@@ -216,11 +215,11 @@ class SinrValidator : public Validator {
         }
       }
     }
-    if (tx >= 0 && rx >= 0) {
-      const hsize_t rows = dataset_dims(tx, g + "tx")[0];
+    if (tx && rx) {
+      const hsize_t rows = tx->rows();
       for (hsize_t s = 0; s < rows; s += kBlockRows) {
         const hsize_t n = std::min(kBlockRows, rows - s);
-        const auto a = read_u64(tx, g + "tx", s, n), b = read_u64(rx, g + "rx", s, n);
+        const auto a = tx->read<std::uint64_t>(s, n), b = rx->read<std::uint64_t>(s, n);
         for (hsize_t i = 0; i < n; ++i)
           if (a[i] == b[i]) self.add(s + i, "node " + std::to_string(a[i]));
       }
@@ -238,25 +237,25 @@ void validate_sinr(const hdf5::CheckedFile& file, const nlohmann::json& schema, 
 }
 
 // Summary of a SINR outcome file (format checked by the caller).
-nlohmann::json sinr_info(const InfoReader& r) {
+nlohmann::json sinr_info(const hdf5::CheckedFile& r) {
   nlohmann::json info = identity_info(r, sinr::kSinrFormat);
-  info["channel_model"] = r.str_attr("channel_model", "");
-  info["los_from_ray"] = r.num_attr<std::uint64_t>("/", "los_from_ray").value_or(0) != 0;
+  info["channel_model"] = root_str(r, "channel_model", "");
+  info["los_from_ray"] = r.attr_if<std::uint64_t>("/", "los_from_ray").value_or(0) != 0;
   for (const char* k :
        {"carrier_hz", "sinr_threshold_db", "sensitivity_dbm", "gain_threshold_db", "time_start_s", "time_end_s"})
-    info[k] = r.num_attr<double>("/", k).value_or(0.0);
+    info[k] = r.attr_if<double>("/", k).value_or(0.0);
 
   // The node and PRR tables are written by finish(): absent in an unfinished file.
-  info["nodes"] = r.exists("/nodes/id") ? r.rows("/nodes/id") : 0;
-  info["transmissions"] = r.rows("/transmissions/start_s");
-  info["receptions"] = r.rows("/receptions/decoded");
-  info["interferers"] = r.rows("/interferers/transmission");
+  info["nodes"] = r.exists("/nodes/id") ? r.column_rows("/nodes/id") : 0;
+  info["transmissions"] = r.column_rows("/transmissions/start_s");
+  info["receptions"] = r.column_rows("/receptions/decoded");
+  info["interferers"] = r.column_rows("/interferers/transmission");
   std::uint64_t decoded = 0;
   r.scan_u64("/receptions/decoded", [&](const std::vector<std::uint64_t>& v) {
     for (auto d : v) decoded += d == 1 ? 1 : 0;
   });
   info["decoded"] = decoded;
-  info["prr_links"] = r.exists("/prr_links/prr") ? r.rows("/prr_links/prr") : 0;
+  info["prr_links"] = r.exists("/prr_links/prr") ? r.column_rows("/prr_links/prr") : 0;
 
   nlohmann::json prr = nlohmann::json::object();
   if (r.exists("/prr_rats/rat")) {
@@ -278,7 +277,7 @@ nlohmann::json sinr_info(const InfoReader& r) {
   info["prr"] = prr;
 
   std::error_code ec;
-  const auto bytes = std::filesystem::file_size(r.path, ec);
+  const auto bytes = std::filesystem::file_size(r.path(), ec);
   info["file_bytes"] = ec ? 0 : bytes;
   return info;
 }

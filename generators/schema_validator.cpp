@@ -20,51 +20,23 @@ void add_file_size(nlohmann::json& info, const std::string& path, std::uint64_t 
 }
 
 void Validator::run() {
-  check_attributes(file_.id(), "/", schema_.at("attributes"));
+  check_attributes("/", schema_.at("attributes"));
   for (const auto& g : schema_.at("groups")) check_group(g);
   check_root_counts(schema_.at("attributes"));
   for (const auto& g : schema_.at("groups"))
     for (const auto& d : g.at("datasets")) guarded(path_of(g, d), [&] { check_values(g, d); });
   rules();
-  for (const auto& entry : good_) guarded(entry.first, [&] { check_readable(entry.first, entry.second.get()); });
+  // Every row of every dataset, so damaged data is found even where no rule looks.
+  for (const auto& entry : good_) guarded(entry.first, [&] { entry.second.read_every_row(); });
 }
 
-void Validator::check_readable(const std::string& p, hid_t ds) {
-  Handle ftype(H5Dget_type(ds), H5Tclose);
-  if (!ftype.valid()) read_fail(p, "cannot get type");
-  const bool vlen = H5Tget_class(ftype.get()) == H5T_STRING && H5Tis_variable_str(ftype.get()) > 0;
-  Handle mtype(vlen ? H5Tcopy(ftype.get()) : H5Tget_native_type(ftype.get(), H5T_DIR_ASCEND), H5Tclose);
-  if (!mtype.valid()) read_fail(p, "cannot make memory type");
-  const auto dims = dataset_dims(ds, p);
-  if (dims.empty() || dims.size() > 2) return;
-  const hsize_t width = dims.size() == 2 ? dims[1] : 1;
-  const std::size_t row_bytes = std::max<std::size_t>(1, H5Tget_size(mtype.get()) * width);
-  const hsize_t block = std::max<hsize_t>(1, (hsize_t{16} << 20) / row_bytes);
-  std::vector<unsigned char> buf;
-  for (hsize_t start = 0; start < dims[0]; start += block) {
-    const hsize_t n = std::min(block, dims[0] - start);
-    buf.resize(static_cast<std::size_t>(n) * row_bytes);
-    Handle fspace(H5Dget_space(ds), H5Sclose);
-    const hsize_t s[2] = {start, 0};
-    const hsize_t c[2] = {n, width};
-    const int rank = static_cast<int>(dims.size());
-    if (!fspace.valid() || H5Sselect_hyperslab(fspace.get(), H5S_SELECT_SET, s, nullptr, c, nullptr) < 0)
-      read_fail(p, "cannot select rows");
-    Handle mspace(H5Screate_simple(rank, c, nullptr), H5Sclose);
-    if (!mspace.valid() || H5Dread(ds, mtype.get(), mspace.get(), fspace.get(), H5P_DEFAULT, buf.data()) < 0)
-      read_fail(p, "cannot read rows " + std::to_string(start) + ".." + std::to_string(start + n - 1) +
-                       " (damaged data?)");
-    if (vlen) H5Dvlen_reclaim(mtype.get(), mspace.get(), H5P_DEFAULT, buf.data());
-  }
-}
-
-void Validator::check_attributes(hid_t loc, const std::string& where, const nlohmann::json& specs) {
+void Validator::check_attributes(const std::string& where, const nlohmann::json& specs) {
   const std::string prefix = where == "/" ? "attribute " : "attribute " + where + "@";
   for (const auto& a : specs) {
     const std::string name = a.at("name");
     const std::string dtype = a.at("dtype");
     const std::string label = prefix + name;
-    if (!has_attr(loc, name)) {
+    if (!file_.has_attr(where, name)) {
       if (a.value("optional", false)) continue;
       if (name == "complete")
         problem(label + " missing: the file was not finished (its writer stopped before finish())");
@@ -72,24 +44,23 @@ void Validator::check_attributes(hid_t loc, const std::string& where, const nloh
         problem(label + " missing");
       continue;
     }
-    Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
-    Handle type(attr.valid() ? H5Aget_type(attr.get()) : H5I_INVALID_HID, H5Tclose);
-    Handle space(attr.valid() ? H5Aget_space(attr.get()) : H5I_INVALID_HID, H5Sclose);
-    if (!type.valid() || !space.valid()) {
-      problem(label + ": cannot open (" + hdf5_error_text() + ")");
+    std::string why;
+    const auto attr = file_.find_attr(where, name, &why);
+    if (!attr) {
+      problem(label + ": cannot open (" + why + ")");
       continue;
     }
-    if (auto m = type_mismatch(type.get(), dtype); !m.empty()) {
+    if (auto m = attr->type_mismatch(dtype); !m.empty()) {
       problem(label + ": type is " + m + ", expected " + dtype);
       continue;
     }
-    if (H5Sget_simple_extent_type(space.get()) != H5S_SCALAR) {
+    if (!attr->scalar()) {
       problem(label + ": not a scalar");
       continue;
     }
     try {
       if (dtype == "str") {
-        const std::string v = read_str_attr(loc, where == "/" ? "/" : where + " ", name);
+        const std::string v = attr->str((where == "/" ? "/" : where + " ") + "attribute " + name);
         if (a.contains("value") && v != a.at("value").get<std::string>())
           problem(label + " is \"" + v + "\", expected \"" + a.at("value").get<std::string>() + "\"");
         if (a.value("json", false) && !nlohmann::json::accept(v)) problem(label + ": not valid JSON text");
@@ -112,7 +83,7 @@ void Validator::check_attributes(hid_t loc, const std::string& where, const nloh
                     " is not supported (this program reads " + std::to_string(supported_major_) + ".x)");
         }
       } else if (dtype[0] == 'u') {
-        const auto v = read_num_attr<std::uint64_t>(loc, where, name, H5T_NATIVE_UINT64);
+        const auto v = attr->num<std::uint64_t>(where + "attribute " + name);
         attr_values_[where + name] = v;
         if (a.contains("value") && v != a.at("value").get<std::uint64_t>())
           problem(label + " is " + std::to_string(v) + ", expected " + a.at("value").dump());
@@ -121,11 +92,11 @@ void Validator::check_attributes(hid_t loc, const std::string& where, const nloh
             !schema_.at("codes").at(a.at("codes").get<std::string>()).at("values").contains(std::to_string(v)))
           problem(label + " is " + std::to_string(v) + ", not in the code table " + a.at("codes").get<std::string>());
       } else {
-        const auto v = read_num_attr<double>(loc, where, name, H5T_NATIVE_DOUBLE);
+        const auto v = attr->num<double>(where + "attribute " + name);
         if (!std::isfinite(v)) problem(label + " is not finite");
       }
     } catch (const std::exception& e) {
-      problem(label + ": " + e.what());
+      problem(label + ": " + text_of(e));
     }
   }
 }
@@ -153,26 +124,23 @@ bool Validator::stored(const nlohmann::json& spec, const std::string& p, bool pr
 void Validator::check_group(const nlohmann::json& g) {
   const std::string name = g.at("name");
   const std::string gpath = "/" + name;
-  if (!stored(g, gpath, has_link(file_.id(), name))) return;
-  if (!has_link(file_.id(), name)) {
+  if (!stored(g, gpath, file_.exists(gpath))) return;
+  if (!file_.exists(gpath)) {
     if (!g.value("optional", false)) problem(gpath + ": group missing");
     return;
   }
-  Handle gid(H5Gopen2(file_.id(), name.c_str(), H5P_DEFAULT), H5Gclose);
-  if (!gid.valid()) {
-    problem(gpath + ": not a group (" + hdf5_error_text() + ")");
+  if (std::string why; !file_.is_group(gpath, &why)) {
+    problem(gpath + ": not a group (" + why + ")");
     return;
   }
-  if (g.contains("attributes")) check_attributes(gid.get(), gpath, g.at("attributes"));
-  for (const auto& d : g.at("datasets")) check_dataset(gid.get(), g, d);
-  groups_.emplace(name, std::move(gid));
+  if (g.contains("attributes")) check_attributes(gpath, g.at("attributes"));
+  for (const auto& d : g.at("datasets")) check_dataset(g, d);
 }
 
-void Validator::check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann::json& d) {
-  const std::string name = d.at("name");
+void Validator::check_dataset(const nlohmann::json& g, const nlohmann::json& d) {
   const std::string p = path_of(g, d);
-  if (!stored(d, p, has_link(gid, name))) return;
-  if (!has_link(gid, name)) {
+  if (!stored(d, p, file_.exists(p))) return;
+  if (!file_.exists(p)) {
     // Added in a later minor version: files written before it lack it.
     if (d.contains("since") &&
         version_triple(file_version_) < version_triple(d.at("since").get<std::string>()))
@@ -180,26 +148,27 @@ void Validator::check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann
     problem(p + ": dataset missing");
     return;
   }
-  Handle ds(H5Dopen2(gid, name.c_str(), H5P_DEFAULT), H5Dclose);
-  if (!ds.valid()) {
-    problem(p + ": not a dataset or unreadable (" + hdf5_error_text() + ")");
-    return;
-  }
-  Handle type(H5Dget_type(ds.get()), H5Tclose);
-  if (!type.valid()) {
-    problem(p + ": cannot get type");
+  std::string why;
+  auto ds = file_.find_dataset(p, &why);
+  if (!ds) {
+    problem(p + ": not a dataset or unreadable (" + why + ")");
     return;
   }
   const std::string dtype = d.at("dtype");
-  if (auto m = type_mismatch(type.get(), dtype); !m.empty()) {
-    problem(p + ": type is " + m + ", expected " + dtype);
+  const auto m = ds->type_mismatch(dtype);
+  if (!m) {
+    problem(p + ": cannot get type");
+    return;
+  }
+  if (!m->empty()) {
+    problem(p + ": type is " + *m + ", expected " + dtype);
     return;
   }
   std::vector<hsize_t> dims;
   try {
-    dims = dataset_dims(ds.get(), p);
+    dims = ds->dims();
   } catch (const std::exception& e) {
-    problem(e.what());
+    problem(text_of(e));
     return;
   }
   const auto& shape = d.at("shape");
@@ -221,19 +190,19 @@ void Validator::check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann
     }
   }
   for (const char* attr : {"units", "description"}) {
-    if (!has_attr(ds.get(), attr)) {
+    if (!file_.has_attr(p, attr)) {
       problem(p + ": attribute " + std::string(attr) + " missing");
       continue;
     }
     try {
-      const std::string v = read_str_attr(ds.get(), p + " ", attr);
+      const std::string v = file_.attr<std::string>(p, attr);
       if (std::string(attr) == "units" && v != d.at("units").get<std::string>())
         problem(p + ": units are \"" + v + "\", expected \"" + d.at("units").get<std::string>() + "\"");
     } catch (const std::exception& e) {
-      problem(p + ": " + e.what());
+      problem(p + ": " + text_of(e));
     }
   }
-  if (ok) good_.emplace(p, std::move(ds));
+  if (ok) good_.emplace(p, std::move(*ds));
 }
 
 void Validator::check_root_counts(const nlohmann::json& specs) {
@@ -251,8 +220,8 @@ void Validator::check_root_counts(const nlohmann::json& specs) {
 
 void Validator::check_values(const nlohmann::json& g, const nlohmann::json& d) {
   const std::string p = path_of(g, d);
-  const hid_t ds = dset(p);
-  if (ds < 0) return;
+  const hdf5::Dataset* ds = dset(p);
+  if (!ds) return;
   const auto& codes = schema_.at("codes");
   std::set<std::uint64_t> allowed;
   std::string allowed_text;
@@ -276,24 +245,24 @@ void Validator::check_values(const nlohmann::json& g, const nlohmann::json& d) {
     if (!limit) return;  // the referenced table is missing: reported already
   }
   const bool offsets = d.contains("offsets");
-  hid_t count_ds = H5I_INVALID_HID;
+  const hdf5::Dataset* count_ds = nullptr;
   std::string count_path, total_sym;
   if (offsets) {
     count_path = "/" + g.at("name").get<std::string>() + "/" + d.at("offsets").at("count").get<std::string>();
     total_sym = d.at("offsets").at("total");
     count_ds = dset(count_path);
-    if (count_ds < 0) return;
+    if (!count_ds) return;
   }
   if (allowed.empty() && mask == ~std::uint64_t{0} && !limit && !offsets) return;
 
-  const hsize_t rows = dataset_dims(ds, p)[0];
+  const hsize_t rows = ds->rows();
   Tally bad_code, bad_bits, bad_ref, bad_offset;
   std::uint64_t running = 0;
   for (hsize_t start = 0; start < rows; start += kBlockRows) {
     const hsize_t n = std::min(kBlockRows, rows - start);
-    const auto v = read_u64(ds, p, start, n);
+    const auto v = ds->read<std::uint64_t>(start, n);
     std::vector<std::uint64_t> counts;
-    if (offsets) counts = read_u64(count_ds, count_path, start, n);
+    if (offsets) counts = count_ds->read<std::uint64_t>(start, n);
     for (hsize_t i = 0; i < n; ++i) {
       const std::uint64_t x = v[i];
       if (!allowed.empty() && !allowed.count(x)) bad_code.add(start + i, std::to_string(x));
@@ -322,8 +291,12 @@ void Validator::check_values(const nlohmann::json& g, const nlohmann::json& d) {
   }
 }
 
+std::string root_str(const hdf5::CheckedFile& r, const std::string& name, const std::string& fallback) {
+  return r.attr_if<std::string>("/", name).value_or(fallback);
+}
+
 // Nodes by kind (the node table is written by finish(): absent in an unfinished file).
-void add_node_kinds(nlohmann::json& info, const InfoReader& r) {
+void add_node_kinds(nlohmann::json& info, const hdf5::CheckedFile& r) {
   std::uint64_t vehicles = 0, rsus = 0, nodes = 0;
   if (r.exists("/nodes/kind"))
     r.scan_u64("/nodes/kind", [&](const std::vector<std::uint64_t>& k) {
@@ -344,14 +317,14 @@ std::string human_bytes(double b) {
   return buf;
 }
 
-nlohmann::json identity_info(const InfoReader& r, const char* format) {
+nlohmann::json identity_info(const hdf5::CheckedFile& r, const char* format) {
   nlohmann::json info;
-  info["file"] = r.path;
+  info["file"] = r.path();
   info["format"] = format;
-  info["schema_version"] = r.str_attr("schema_version", "");
-  info["raysweep_version"] = r.str_attr("raysweep_version", "");
-  info["git_hash"] = r.str_attr("git_hash", "");
-  info["complete"] = r.num_attr<std::uint64_t>("/", "complete").value_or(0) == 1;
+  info["schema_version"] = root_str(r, "schema_version");
+  info["raysweep_version"] = root_str(r, "raysweep_version");
+  info["git_hash"] = root_str(r, "git_hash");
+  info["complete"] = r.attr_if<std::uint64_t>("/", "complete").value_or(0) == 1;
   return info;
 }
 

@@ -1,11 +1,10 @@
 // Internal to generators/: what the per-format validators and summaries share
 // (schema_channels.cpp, schema_sinr.cpp, schema_ns3_table.cpp): the generic,
-// schema-driven Validator each format's rules derive from, the checked-file
-// helpers of dataset_info, and each format's entry points, which
-// dataset_schema.cpp dispatches to by the root `format` attribute.
+// schema-driven Validator each format's rules derive from, the summaries'
+// helpers, and each format's entry points, which dataset_schema.cpp
+// dispatches to by the root `format` attribute. All of them read through the
+// checked file (hdf5/checked_file.hpp).
 #pragma once
-
-#include <hdf5.h>
 
 #include <array>
 #include <cstdint>
@@ -20,29 +19,14 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "meshkit/errors.hpp"
 
 namespace raysweep::generators::schema {
 
-using hdf5::dataset_dims;
-using hdf5::Handle;
-using hdf5::has_attr;
-using hdf5::has_link;
-using hdf5::hdf5_error_text;
+using hdf5::BlockReader;
 using hdf5::kBlockRows;
 using hdf5::major_version;
-using hdf5::QuietHdf5;
-using hdf5::read_f64;
-using hdf5::read_fail;
-using hdf5::read_num_attr;
-using hdf5::read_rows;
-using hdf5::read_str_attr;
-using hdf5::read_u64;
-using hdf5::ReadError;
-using hdf5::type_mismatch;
-
-using hdf5::BlockReader;
 
 // The file's size, and per row of its main table (`per_key`).
 void add_file_size(nlohmann::json& info, const std::string& path, std::uint64_t rows, const char* per_key);
@@ -81,34 +65,38 @@ class Validator {
   const hdf5::CheckedFile& file_;
   const nlohmann::json& schema_;
   int supported_major_;
-  std::map<std::string, Handle> groups_;
-  std::map<std::string, Handle> good_;                         // datasets with the right type and shape
+  std::map<std::string, hdf5::Dataset> good_;                  // datasets with the right type and shape
   std::map<std::string, std::pair<hsize_t, std::string>> dims_;  // symbol -> value, where it came from
   std::set<std::string> offsets_ok_;                           // offset datasets that passed
 
   void problem(std::string s) { problems_.push_back(std::move(s)); }
+
+  // An error's text; without the file's name, which the problems leave out,
+  // when the checked file raised it.
+  std::string text_of(const std::exception& e) const {
+    const std::string what = e.what(), prefix = path_ + ": ";
+    const bool ours = dynamic_cast<const meshkit::InputError*>(&e) && what.rfind(prefix, 0) == 0;
+    return ours ? what.substr(prefix.size()) : what;
+  }
 
   template <class F>
   void guarded(const std::string& where, F&& f) {
     try {
       f();
     } catch (const std::exception& e) {
-      const std::string what = e.what();
+      const std::string what = text_of(e);
       problem(what.rfind(where, 0) == 0 ? what : where + ": " + what);  // readers' messages name the dataset
     }
   }
-
-  // Reads every row (decompressing every chunk), so damaged data is found even in
-  // datasets no rule looks at.
-  void check_readable(const std::string& p, hid_t ds);
 
   static std::string path_of(const nlohmann::json& g, const nlohmann::json& d) {
     return "/" + g.at("name").get<std::string>() + "/" + d.at("name").get<std::string>();
   }
 
-  hid_t dset(const std::string& p) const {
+  // nullptr when the dataset failed the structural checks.
+  const hdf5::Dataset* dset(const std::string& p) const {
     auto it = good_.find(p);
-    return it == good_.end() ? H5I_INVALID_HID : it->second.get();
+    return it == good_.end() ? nullptr : &it->second;
   }
   std::optional<hsize_t> dim(const std::string& sym) const {
     auto it = dims_.find(sym);
@@ -129,7 +117,8 @@ class Validator {
     return false;
   }
 
-  void check_attributes(hid_t loc, const std::string& where, const nlohmann::json& specs);
+  // `where` is "/" for the root.
+  void check_attributes(const std::string& where, const nlohmann::json& specs);
   std::map<std::string, std::uint64_t> attr_values_;
   std::string file_version_;  // the file's schema_version
 
@@ -153,7 +142,7 @@ class Validator {
 
   void check_group(const nlohmann::json& g);
 
-  void check_dataset(hid_t gid, const nlohmann::json& g, const nlohmann::json& d);
+  void check_dataset(const nlohmann::json& g, const nlohmann::json& d);
 
   void check_root_counts(const nlohmann::json& specs);
 
@@ -161,83 +150,30 @@ class Validator {
   void check_values(const nlohmann::json& g, const nlohmann::json& d);
 };
 
-// ---------------------------------------------------------------------------
-// dataset_info helpers over the checked file. Their dataset errors keep the
-// column readers' whole text after the object ("FILE: /x: /x: not an array"),
-// which tests pin.
-
-struct InfoReader {
-  std::string path;
-  hdf5::CheckedFile file;
-
-  [[noreturn]] void fail(const std::string& element, const std::string& what) const { file.fail(element, what); }
-  template <class F>
-  auto guard(const std::string& element, F&& f) const {
-    return file.guard(element, std::forward<F>(f));
-  }
-  bool exists(const std::string& p) const { return file.exists(p); }
-  // The first dimension; a ReadError for a scalar dataset (fuzz_sinr_h5 found
-  // dims.at(0) throwing std::out_of_range past guard() here).
-  static hsize_t length(hid_t d, const std::string& p) {
-    const auto dims = dataset_dims(d, p);
-    if (dims.empty()) throw ReadError(p + ": not an array");
-    return dims[0];
-  }
-  hsize_t rows(const std::string& p) const {
-    const hdf5::Dataset d = file.dataset(p);
-    return guard(p, [&] { return length(d.get(), p); });
-  }
-  // Calls fn(block) for consecutive blocks of an integer column.
-  template <class Fn>
-  void scan_u64(const std::string& p, Fn&& fn) const {
-    const hdf5::Dataset d = file.dataset(p);
-    guard(p, [&] {
-      const hsize_t n = length(d.get(), p);
-      for (hsize_t start = 0; start < n; start += kBlockRows) fn(read_u64(d.get(), p, start, std::min(kBlockRows, n - start)));
-      return 0;
-    });
-  }
-  std::string str_attr(const std::string& name, const std::string& fallback) const {
-    return file.attr_if<std::string>("/", name).value_or(fallback);
-  }
-  // Every element of a numeric column.
-  std::vector<double> all_f64(const std::string& p) const {
-    const hdf5::Dataset d = file.dataset(p);
-    return guard(p, [&] { return read_f64(d.get(), p, 0, length(d.get(), p)); });
-  }
-  std::vector<std::uint64_t> all_u64(const std::string& p) const {
-    const hdf5::Dataset d = file.dataset(p);
-    return guard(p, [&] { return read_u64(d.get(), p, 0, length(d.get(), p)); });
-  }
-  // An attribute of `object` ("/" for the root); nullopt when missing.
-  template <class T>
-  std::optional<T> num_attr(const std::string& object, const std::string& name) const {
-    return file.attr_if<T>(object, name);
-  }
-};
-
+// A root string attribute; `fallback` when it is missing.
+std::string root_str(const hdf5::CheckedFile& r, const std::string& name, const std::string& fallback = "");
 // Nodes by kind (the node table is written by finish(): absent in an unfinished file).
-void add_node_kinds(nlohmann::json& info, const InfoReader& r);
+void add_node_kinds(nlohmann::json& info, const hdf5::CheckedFile& r);
 std::string human_bytes(double b);
 // The first lines of both formats' summaries: file, completeness, format and writer.
 std::string identity_lines(const nlohmann::json& info);
 // The summary's identity fields, which every format has: file, format, schema
 // version, writer version and commit, completeness.
-nlohmann::json identity_info(const InfoReader& r, const char* format);
+nlohmann::json identity_info(const hdf5::CheckedFile& r, const char* format);
 
 // Each format's rules beyond the schema, summary and summary text.
 void validate_channels(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
-nlohmann::json channel_info(const InfoReader& r);
+nlohmann::json channel_info(const hdf5::CheckedFile& r);
 std::string format_channel_info(const nlohmann::json& info);
 void validate_sinr(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
-nlohmann::json sinr_info(const InfoReader& r);
+nlohmann::json sinr_info(const hdf5::CheckedFile& r);
 std::string format_sinr_info(const nlohmann::json& info);
 void validate_ns3_table(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
-nlohmann::json ns3_table_info(const InfoReader& r);
+nlohmann::json ns3_table_info(const hdf5::CheckedFile& r);
 std::string format_ns3_table_info(const nlohmann::json& info);
 
 void validate_features(const hdf5::CheckedFile& file, const nlohmann::json& schema, std::vector<std::string>& problems);
-nlohmann::json features_info(const InfoReader& r);
+nlohmann::json features_info(const hdf5::CheckedFile& r);
 std::string format_features_info(const nlohmann::json& info);
 
 }  // namespace raysweep::generators::schema

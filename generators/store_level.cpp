@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators {

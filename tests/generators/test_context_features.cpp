@@ -17,7 +17,7 @@
 #include "generators/context_features.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "meshkit/errors.hpp"
 #include "scene_fixtures.hpp"
 #include "tracer/trace_scene.hpp"
@@ -227,9 +227,9 @@ TEST_F(ContextFeatures, TheFileReadsNothingTheTracerComputedAndValidates) {
   // The row of link (tx 0, rx 1) holds what link_features gives.
   raysweep::generators::hdf5::CheckedFile f((dir / "fa.h5").string());
   f.open();
-  const auto count = f.dataset("/vehicles/count").read_all<std::uint8_t>(H5T_NATIVE_UINT8, 10);
-  const auto along = f.dataset("/vehicles/along_m").read_all<float>(H5T_NATIVE_FLOAT, 10, spec.max_vehicles);
-  const auto height = f.dataset("/corridor/height").read<std::uint8_t>(H5T_NATIVE_UINT8, 0, 1, spec.cells());
+  const auto count = f.dataset("/vehicles/count").read_all<std::uint8_t>(10);
+  const auto along = f.dataset("/vehicles/along_m").read_all<float>(10, spec.max_vehicles);
+  const auto height = f.dataset("/corridor/height").read<std::uint8_t>(0, 1, spec.cells());
   EXPECT_EQ(count[0], 1);
   EXPECT_NEAR(along[0], 70, 1e-4);
   EXPECT_TRUE(std::isnan(along[1]));

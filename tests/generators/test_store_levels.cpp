@@ -15,7 +15,7 @@
 #include "generators/dataset_reader.hpp"
 #include "generators/dataset_schema.hpp"
 #include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "generators/ns3_table.hpp"
 #include "generators/store_level.hpp"
 #include "hdf5_test_util.hpp"

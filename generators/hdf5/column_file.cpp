@@ -1,8 +1,8 @@
-// Schema-driven HDF5 columns (see hdf5_columns.hpp). The sequence of HDF5 calls
+// Schema-driven HDF5 columns (see column_file.hpp). The sequence of HDF5 calls
 // made for a given sequence of requests is fixed, which together with disabled
 // object time stamps is what makes the files byte-identical for identical input:
 // keep it that way when changing anything here.
-#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5/column_file.hpp"
 
 #include <libdeflate.h>
 #include <tbb/parallel_for.h>
@@ -14,81 +14,7 @@
 
 namespace raysweep::generators::hdf5 {
 
-// ---------------------------------------------------------------------------
-// Writing.
-
-void write_fail(const std::string& file, const std::string& object, const std::string& what) {
-  std::string msg = "HDF5 " + file + ": " + object + ": " + what;
-  const std::string h5 = hdf5_error_text();
-  if (!h5.empty()) msg += " (" + h5 + ")";
-  throw std::runtime_error(msg);
-}
-
-Dtype parse_dtype(const std::string& s) {
-  static const std::unordered_map<std::string, Dtype> m = {{"u8", Dtype::u8},   {"u16", Dtype::u16},
-                                                           {"u32", Dtype::u32}, {"u64", Dtype::u64},
-                                                           {"f32", Dtype::f32}, {"f64", Dtype::f64},
-                                                           {"c64", Dtype::c64}, {"str", Dtype::str}};
-  auto it = m.find(s);
-  if (it == m.end()) throw std::logic_error("schema: unknown dtype " + s);
-  return it->second;
-}
-
-std::size_t dtype_bytes(Dtype t) {
-  switch (t) {
-    case Dtype::u8: return 1;
-    case Dtype::u16: return 2;
-    case Dtype::u32: return 4;
-    case Dtype::u64: return 8;
-    case Dtype::f32: return 4;
-    case Dtype::f64: return 8;
-    case Dtype::c64: return 8;
-    case Dtype::str: return sizeof(const char*);
-  }
-  return 0;
-}
-
-Types::Types(const std::string& file) {
-  c64_mem_ = Handle(H5Tcreate(H5T_COMPOUND, 2 * sizeof(float)), H5Tclose);
-  if (c64_mem_.get() < 0 || H5Tinsert(c64_mem_.get(), "r", 0, H5T_NATIVE_FLOAT) < 0 ||
-      H5Tinsert(c64_mem_.get(), "i", sizeof(float), H5T_NATIVE_FLOAT) < 0)
-    write_fail(file, "complex memory type", "cannot create");
-  c64_file_ = Handle(H5Tcreate(H5T_COMPOUND, 8), H5Tclose);
-  if (c64_file_.get() < 0 || H5Tinsert(c64_file_.get(), "r", 0, H5T_IEEE_F32LE) < 0 ||
-      H5Tinsert(c64_file_.get(), "i", 4, H5T_IEEE_F32LE) < 0)
-    write_fail(file, "complex file type", "cannot create");
-  str_ = Handle(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (str_.get() < 0 || H5Tset_size(str_.get(), H5T_VARIABLE) < 0 || H5Tset_cset(str_.get(), H5T_CSET_UTF8) < 0)
-    write_fail(file, "string type", "cannot create");
-}
-
-hid_t Types::mem(Dtype t) const {
-  switch (t) {
-    case Dtype::u8: return H5T_NATIVE_UINT8;
-    case Dtype::u16: return H5T_NATIVE_UINT16;
-    case Dtype::u32: return H5T_NATIVE_UINT32;
-    case Dtype::u64: return H5T_NATIVE_UINT64;
-    case Dtype::f32: return H5T_NATIVE_FLOAT;
-    case Dtype::f64: return H5T_NATIVE_DOUBLE;
-    case Dtype::c64: return c64_mem_.get();
-    case Dtype::str: return str_.get();
-  }
-  return H5I_INVALID_HID;
-}
-
-hid_t Types::file(Dtype t) const {
-  switch (t) {
-    case Dtype::u8: return H5T_STD_U8LE;
-    case Dtype::u16: return H5T_STD_U16LE;
-    case Dtype::u32: return H5T_STD_U32LE;
-    case Dtype::u64: return H5T_STD_U64LE;
-    case Dtype::f32: return H5T_IEEE_F32LE;
-    case Dtype::f64: return H5T_IEEE_F64LE;
-    case Dtype::c64: return c64_file_.get();
-    case Dtype::str: return str_.get();
-  }
-  return H5I_INVALID_HID;
-}
+namespace {
 
 void write_attr(const std::string& file, hid_t loc, const std::string& where, const std::string& name, hid_t ftype,
                 hid_t mtype, const void* value) {
@@ -105,6 +31,8 @@ void write_str_attr(const std::string& file, const Types& types, hid_t loc, cons
   const char* p = value.c_str();
   write_attr(file, loc, where, name, types.str(), types.str(), &p);
 }
+
+}  // namespace
 
 constexpr std::size_t kFlushBytes = std::size_t{1} << 20;  // write when a buffer holds about this much
 constexpr int kDeflateLevel = 2;  // see shuffle_deflate
@@ -344,6 +272,40 @@ void ColumnFile::table(const std::string& group_name, const std::string& name, D
   if (dset.close() < 0) write_fail(file_, where, "cannot close dataset");
 }
 
+void ColumnFile::virtual_table(const std::string& group_name, const std::string& name, hsize_t rows,
+                               const std::vector<VirtualSource>& sources) {
+  const auto& spec = schema_dataset(schema_, group_name, name);
+  const std::string where = "/" + group_name + "/" + name;
+  const Dtype dtype = parse_dtype(spec.at("dtype").get<std::string>());
+  const auto& shape = spec.at("shape");
+  const int rank = static_cast<int>(shape.size());
+  const hsize_t width = rank == 2 ? fixed_dim(shape[1]) : 1;
+  const hsize_t dims[2] = {rows, width};
+  Handle vspace(H5Screate_simple(rank, dims, nullptr), H5Sclose);
+  Handle dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!vspace.valid() || !dcpl.valid() || H5Pset_obj_track_times(dcpl.get(), 0) < 0)
+    write_fail(file_, where, "cannot set virtual dataset properties");
+  hsize_t dst = 0;
+  for (const auto& src : sources) {
+    if (src.rows == 0) continue;
+    const hsize_t src_dims[2] = {src.file_rows, width};
+    Handle sspace(H5Screate_simple(rank, src_dims, nullptr), H5Sclose);
+    const hsize_t s0[2] = {src.first, 0}, d0[2] = {dst, 0}, cnt[2] = {src.rows, width};
+    if (!sspace.valid() || H5Sselect_hyperslab(sspace.get(), H5S_SELECT_SET, s0, nullptr, cnt, nullptr) < 0 ||
+        H5Sselect_hyperslab(vspace.get(), H5S_SELECT_SET, d0, nullptr, cnt, nullptr) < 0 ||
+        H5Pset_virtual(dcpl.get(), vspace.get(), src.file.c_str(), where.c_str(), sspace.get()) < 0)
+      write_fail(file_, where, "cannot map rows of " + src.file);
+    dst += src.rows;
+  }
+  H5Sselect_all(vspace.get());
+  Handle dset(H5Dcreate2(group(group_name), name.c_str(), types_.file(dtype), vspace.get(), H5P_DEFAULT, dcpl.get(),
+                         H5P_DEFAULT),
+              H5Dclose);
+  if (!dset.valid()) write_fail(file_, where, "cannot create virtual dataset");
+  dataset_attrs(dset.get(), where, spec);
+  if (dset.close() < 0) write_fail(file_, where, "cannot close virtual dataset");
+}
+
 void ColumnFile::write_whole_chunks(bool full_buffers_only, bool tail) {
   struct Job {
     Column* column;
@@ -432,172 +394,6 @@ void ColumnFile::abandon() noexcept {
     close_all(false);
   } catch (...) {
   }
-}
-
-// ---------------------------------------------------------------------------
-// Reading.
-
-void read_fail(const std::string& object, const std::string& what) {
-  std::string msg = object + ": " + what;
-  const std::string h5 = hdf5_error_text();
-  if (!h5.empty()) msg += " (" + h5 + ")";
-  throw ReadError(msg);
-}
-
-std::string describe_type(hid_t type) {
-  const H5T_class_t cls = H5Tget_class(type);
-  const std::size_t size = H5Tget_size(type);
-  switch (cls) {
-    case H5T_INTEGER:
-      return (H5Tget_sign(type) == H5T_SGN_NONE ? "unsigned " : "signed ") + std::to_string(8 * size) + "-bit integer";
-    case H5T_FLOAT: return std::to_string(8 * size) + "-bit float";
-    case H5T_STRING:
-      return H5Tis_variable_str(type) > 0 ? "variable-length string" : std::to_string(size) + "-byte fixed string";
-    case H5T_COMPOUND: return "compound of " + std::to_string(H5Tget_nmembers(type)) + " members";
-    default: return "type class " + std::to_string(static_cast<int>(cls));
-  }
-}
-
-std::string type_mismatch(hid_t type, const std::string& dtype) {
-  const H5T_class_t cls = H5Tget_class(type);
-  const std::size_t size = H5Tget_size(type);
-  bool ok = false;
-  if (dtype.size() >= 2 && dtype[0] == 'u' && std::isdigit(static_cast<unsigned char>(dtype[1]))) {
-    ok = cls == H5T_INTEGER && H5Tget_sign(type) == H5T_SGN_NONE && 8 * size == std::stoul(dtype.substr(1));
-  } else if (dtype == "f32" || dtype == "f64") {
-    ok = cls == H5T_FLOAT && 8 * size == std::stoul(dtype.substr(1));
-  } else if (dtype == "str") {
-    ok = cls == H5T_STRING && H5Tis_variable_str(type) > 0;
-  } else if (dtype == "c64") {
-    ok = cls == H5T_COMPOUND && size == 8 && H5Tget_nmembers(type) == 2;
-    for (unsigned m = 0; ok && m < 2; ++m) {
-      char* name = H5Tget_member_name(type, m);
-      const std::string expect = m == 0 ? "r" : "i";
-      ok = name && expect == name && H5Tget_member_offset(type, m) == 4 * m;
-      if (name) H5free_memory(name);
-      Handle mt(H5Tget_member_type(type, m), H5Tclose);
-      ok = ok && mt.valid() && H5Tget_class(mt.get()) == H5T_FLOAT && H5Tget_size(mt.get()) == 4;
-    }
-    if (cls == H5T_COMPOUND && !ok) return "compound other than {r: f32, i: f32}";
-  }
-  return ok ? std::string() : describe_type(type);
-}
-
-bool has_link(hid_t loc, const std::string& name) {
-  const htri_t r = H5Lexists(loc, name.c_str(), H5P_DEFAULT);
-  H5Eclear2(H5E_DEFAULT);
-  return r > 0;
-}
-
-bool has_attr(hid_t loc, const std::string& name) {
-  const htri_t r = H5Aexists(loc, name.c_str());
-  H5Eclear2(H5E_DEFAULT);
-  return r > 0;
-}
-
-std::string read_str_attr(hid_t loc, const std::string& where, const std::string& name) {
-  Handle attr(H5Aopen(loc, name.c_str(), H5P_DEFAULT), H5Aclose);
-  if (!attr.valid()) read_fail(where + "attribute " + name, "cannot open");
-  return read_str_attr(attr.get(), where + "attribute " + name);
-}
-
-std::string read_str_attr(hid_t attr, const std::string& label) {
-  Handle ftype(H5Aget_type(attr), H5Tclose);
-  if (!ftype.valid()) read_fail(label, "cannot get type");
-  if (H5Tget_class(ftype.get()) != H5T_STRING) read_fail(label, "not a string");
-  // One string: H5Aread writes every element, so an array attribute overflowed
-  // the one-string buffer below (ASan in tests/fuzz/fuzz_sinr_h5, fuzz_ns3_table_h5).
-  Handle space(H5Aget_space(attr), H5Sclose);
-  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1) read_fail(label, "not a single value");
-  Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (H5Tis_variable_str(ftype.get()) > 0) {
-    if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
-        H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
-      read_fail(label, "cannot make string type");
-    char* p = nullptr;
-    if (H5Aread(attr, mtype.get(), &p) < 0) read_fail(label, "cannot read");
-    std::string s = p ? p : "";
-    if (p) H5free_memory(p);
-    return s;
-  }
-  const std::size_t size = H5Tget_size(ftype.get());
-  std::string s(size + 1, '\0');
-  if (!mtype.valid() || H5Tset_size(mtype.get(), size + 1) < 0 || H5Aread(attr, mtype.get(), s.data()) < 0)
-    read_fail(label, "cannot read");
-  s.resize(std::strlen(s.c_str()));
-  return s;
-}
-
-void read_num_attr(hid_t attr, const std::string& label, hid_t mtype, void* out) {
-  Handle space(H5Aget_space(attr), H5Sclose);
-  if (!space.valid() || H5Sget_simple_extent_npoints(space.get()) != 1) read_fail(label, "not a single value");
-  // A type HDF5 cannot convert (a string, a compound) fails H5Aread as well; this names it.
-  Handle ftype(H5Aget_type(attr), H5Tclose);
-  H5T_cdata_t* cdata = nullptr;
-  if (!ftype.valid() || !H5Tfind(ftype.get(), mtype, &cdata))
-    read_fail(label, ftype.valid() ? "type is " + describe_type(ftype.get()) + ", not a number" : "cannot get type");
-  if (H5Aread(attr, mtype, out) < 0) read_fail(label, "cannot read");
-}
-
-std::vector<hsize_t> dataset_dims(hid_t dset, const std::string& name) {
-  Handle space(H5Dget_space(dset), H5Sclose);
-  if (!space.valid()) read_fail(name, "cannot get dataspace");
-  const int rank = H5Sget_simple_extent_ndims(space.get());
-  if (rank < 0) read_fail(name, "cannot get rank");
-  std::vector<hsize_t> dims(static_cast<std::size_t>(rank));
-  if (rank > 0 && H5Sget_simple_extent_dims(space.get(), dims.data(), nullptr) < 0) read_fail(name, "cannot get shape");
-  return dims;
-}
-
-int check_selection(hid_t dset, const std::string& name, hsize_t start, hsize_t rows, hsize_t width) {
-  const auto dims = dataset_dims(dset, name);
-  const int rank = static_cast<int>(dims.size());
-  if (rank < 1 || rank > 2) read_fail(name, "not a one- or two-dimensional dataset");
-  if (start > dims[0] || rows > dims[0] - start)
-    read_fail(name, "rows " + std::to_string(start) + ".." + std::to_string(start + rows - 1) + " beyond its " +
-                        std::to_string(dims[0]) + " rows");
-  if ((rank == 1 && width != 1) || (rank == 2 && width > dims[1]))
-    read_fail(name, std::to_string(width) + " values a row asked of a dataset of " +
-                        (rank == 2 ? std::to_string(dims[1]) : std::string("1")) + " a row");
-  return rank;
-}
-
-std::vector<std::uint64_t> read_u64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
-  return read_rows<std::uint64_t>(dset, name, H5T_NATIVE_UINT64, start, rows);
-}
-
-std::vector<double> read_f64(hid_t dset, const std::string& name, hsize_t start, hsize_t rows) {
-  return read_rows<double>(dset, name, H5T_NATIVE_DOUBLE, start, rows);
-}
-
-std::vector<std::string> read_strings(hid_t dset, const std::string& name) {
-  Handle ftype(H5Dget_type(dset), H5Tclose);
-  if (!ftype.valid()) read_fail(name, "cannot get type");
-  if (H5Tget_class(ftype.get()) != H5T_STRING || H5Tis_variable_str(ftype.get()) <= 0)
-    read_fail(name, "not a variable-length string dataset");
-  Handle mtype(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (!mtype.valid() || H5Tset_size(mtype.get(), H5T_VARIABLE) < 0 ||
-      H5Tset_cset(mtype.get(), H5Tget_cset(ftype.get())) < 0)
-    read_fail(name, "cannot make string type");
-  const auto dims = dataset_dims(dset, name);
-  if (dims.size() != 1) read_fail(name, "not one-dimensional");
-  std::vector<char*> ptrs(static_cast<std::size_t>(dims[0]), nullptr);
-  std::vector<std::string> out;
-  if (ptrs.empty()) return out;
-  Handle space(H5Dget_space(dset), H5Sclose);
-  if (!space.valid() || H5Dread(dset, mtype.get(), H5S_ALL, H5S_ALL, H5P_DEFAULT, ptrs.data()) < 0)
-    read_fail(name, "cannot read");
-  out.reserve(ptrs.size());
-  for (char* p : ptrs) out.emplace_back(p ? p : "");
-  H5Dvlen_reclaim(mtype.get(), space.get(), H5P_DEFAULT, ptrs.data());
-  return out;
-}
-
-std::optional<int> major_version(const std::string& v) {
-  int major = 0, minor = 0, patch = 0;
-  char tail = 0;
-  if (std::sscanf(v.c_str(), "%d.%d.%d%c", &major, &minor, &patch, &tail) != 3 || major < 0) return std::nullopt;
-  return major;
 }
 
 void ColumnFile::identity_attrs(const std::string& format, const std::string& schema_version,

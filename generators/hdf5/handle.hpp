@@ -1,10 +1,11 @@
-// HDF5 plumbing shared by the dataset writer and validator (internal to
-// generators/): owned handles, the error stack as text, a scope that keeps
-// HDF5 from printing errors itself.
+// HDF5 plumbing shared by the writing (column_file.hpp) and the reading
+// (checked_file.hpp) side of the HDF5 layer: owned handles, the error stack
+// as text, a scope that keeps HDF5 from printing errors itself.
 #pragma once
 
 #include <hdf5.h>
 
+#include <stdexcept>
 #include <string>
 
 namespace raysweep::generators::hdf5 {
@@ -63,6 +64,17 @@ inline std::string hdf5_error_text() {
       &text);
   H5Eclear2(H5E_DEFAULT);
   return text;
+}
+
+// Drops what HDF5 left on its error stack.
+inline void clear_errors() { H5Eclear2(H5E_DEFAULT); }
+
+// Throws std::runtime_error "HDF5 <file>: <object>: <what> (<HDF5 error>)".
+[[noreturn]] inline void write_fail(const std::string& file, const std::string& object, const std::string& what) {
+  std::string msg = "HDF5 " + file + ": " + object + ": " + what;
+  const std::string h5 = hdf5_error_text();
+  if (!h5.empty()) msg += " (" + h5 + ")";
+  throw std::runtime_error(msg);
 }
 
 // Silences HDF5's automatic error printing for the scope (errors become exceptions).
