@@ -15,7 +15,7 @@
 #include <set>
 #include <sstream>
 
-#include "generators/dataset_reader.hpp"
+#include "generators/dataset/dataset_reader.hpp"
 #include "generators/radiomap_solver.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"

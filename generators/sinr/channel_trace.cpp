@@ -11,9 +11,9 @@
 #include <type_traits>
 #include <utility>
 
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/dataset/frame_step.hpp"
 #include "generators/hdf5/checked_file.hpp"
-#include "generators/ns3_table.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators::sinr {

@@ -11,7 +11,6 @@
 #include <stdexcept>
 #include <utility>
 
-#include "generators/dataset_schema.hpp"
 #include "generators/hdf5/checked_file.hpp"
 #include "generators/hdf5/column_file.hpp"
 #include "meshkit/errors.hpp"

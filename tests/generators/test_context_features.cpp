@@ -1,4 +1,4 @@
-// Context features (generators/context_features.hpp) on hand-built scenes:
+// Context features (generators/sweep/context_features.hpp) on hand-built scenes:
 // a building across the corridor lands in the cells it covers with its
 // height and material, a vehicle in the corridor in the slot with its
 // position and size, and nothing the tracer computed is read.
@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "dataset_fixtures.hpp"
-#include "generators/context_features.hpp"
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/formats.hpp"
 #include "generators/hdf5/checked_file.hpp"
+#include "generators/sweep/context_features.hpp"
 #include "meshkit/errors.hpp"
 #include "scene_fixtures.hpp"
 #include "tracer/trace_scene.hpp"
