@@ -24,7 +24,7 @@
 #include <vector>
 
 #include "meshkit/vehicle_model.hpp"
-#include "pipeline/trace_inputs.hpp"
+#include "meshkit/vehicle_library.hpp"
 #include "tracer/tracer.hpp"
 
 using namespace raysweep;
@@ -105,7 +105,7 @@ Case& get_case(const std::string& kind, int seed) {
   } else {
     add_box(s, {-150, 12, 0}, {150, 24, 15}, "concrete", "north", face);
     c.scene = std::make_unique<tracer::TraceScene>(s);
-    pipeline::VehicleLibrary lib;
+    meshkit::VehicleLibrary lib;
     const auto& m = lib.model("passenger");
     const auto car = c.scene->add_vehicle_model("passenger", meshkit::to_scene(m), m.antenna);
     std::vector<tracer::VehiclePose> poses;

@@ -1,7 +1,7 @@
 // Dataset compression benchmark: the chunks of a real sweep's dataset,
 // shuffled as HDF5's shuffle filter lays them out, deflated by zlib and by
 // libdeflate at several levels, on one thread. The dataset writer compresses
-// its chunks this way on every core (generators/hdf5_columns.cpp); the choice
+// its chunks this way on every core (generators/hdf5/column_file.cpp); the choice
 // of compressor and level is made from these numbers (docs/performance.md,
 // docs/decisions.md).
 //
@@ -21,7 +21,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/hdf5_columns.hpp"
+#include "generators/hdf5/column_file.hpp"
 
 namespace fs = std::filesystem;
 

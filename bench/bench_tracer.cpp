@@ -78,8 +78,10 @@
 #include <vector>
 
 #include "meshkit/gltf_io.hpp"
+#include "meshkit/lane_placement.hpp"
 #include "meshkit/mitsuba_io.hpp"
 #include "meshkit/sumo_net.hpp"
+#include "meshkit/vehicle_library.hpp"
 #include "pipeline/scene_stage.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/tracer.hpp"
@@ -96,7 +98,7 @@ using tracer::operator*;
 const fs::path kVan3twin = fs::path(RAYSWEEP_SHARED_DATA) / "van3twin/DriveX-devs_VaN3Twin/src";
 
 struct Placement {
-  std::vector<pipeline::PoseRow> poses;
+  std::vector<meshkit::PoseRow> poses;
   bool passenger_only = false;
   std::string error;  // non-empty: neither mix could be placed
 };
@@ -108,7 +110,7 @@ struct SceneCase {
   meshkit::SumoNetwork net;
   std::size_t excluded_objects = 0;
   std::unique_ptr<tracer::TraceScene> trace;  // shared by the benchmarks; each places its own vehicles
-  pipeline::VehicleLibrary library;           // built-in parametric models
+  meshkit::VehicleLibrary library;           // built-in parametric models
   std::map<int, Placement> placements;
 };
 
@@ -181,10 +183,10 @@ const Placement& placement(SceneCase& c, int n) {
   if (it != c.placements.end()) return it->second;
   Placement p;
   try {
-    p.poses = pipeline::place_on_lanes(c.net, n, 1, {{"passenger", 8}, {"truck", 1}, {"bus", 1}});
+    p.poses = meshkit::place_on_lanes(c.net, n, 1, {{"passenger", 8}, {"truck", 1}, {"bus", 1}});
   } catch (const std::invalid_argument&) {
     try {
-      p.poses = pipeline::place_on_lanes(c.net, n, 1, {{"passenger", 1}});
+      p.poses = meshkit::place_on_lanes(c.net, n, 1, {{"passenger", 1}});
       p.passenger_only = true;
     } catch (const std::invalid_argument& e) {
       p.error = e.what();

@@ -9,7 +9,7 @@
 #include <regex>
 #include <sstream>
 
-#include "generators/dataset_schema.hpp"
+#include "generators/formats.hpp"
 #include "pipeline/merge_stage.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/radiomap_stage.hpp"

@@ -6,7 +6,7 @@
 #include <chrono>
 #include <filesystem>
 
-#include "generators/context_features.hpp"
+#include "generators/sweep/context_features.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "pipeline/preview.hpp"
 #include "pipeline/provenance.hpp"

@@ -1,5 +1,5 @@
 // `raysweep features`: the context features of a channel dataset's links
-// (generators/context_features.hpp) into a sidecar file, from the scene and
+// (generators/sweep/context_features.hpp) into a sidecar file, from the scene and
 // the dataset's node states only. `raysweep ml`: the learning benchmark
 // (python/ml/) over the cities' runs, their features built first.
 #pragma once

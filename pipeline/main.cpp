@@ -12,8 +12,8 @@
 
 #include <tbb/global_control.h>
 
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/formats.hpp"
 #include "meshkit/errors.hpp"
 #include "pipeline/city_run.hpp"
 #include "pipeline/cli/docs.hpp"

@@ -7,9 +7,9 @@
 #include <map>
 #include <memory>
 
-#include "generators/dataset_reader.hpp"
-#include "generators/dataset_virtual.hpp"
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_reader.hpp"
+#include "generators/dataset/dataset_virtual.hpp"
+#include "generators/dataset/dataset_writer.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/shard.hpp"
 #include "pipeline/staged_output.hpp"

@@ -12,7 +12,7 @@
 //   the single-process run's (provenance included: it records the command of
 //   the single-process run, see recorded_command());
 // - `--virtual`: an HDF5 virtual dataset over the shard files
-//   (generators/dataset_virtual.hpp) that reads the same values; it needs
+//   (generators/dataset/dataset_virtual.hpp) that reads the same values; it needs
 //   the shards where they are.
 // The merge is recorded next to the output, in DATASET.h5.merge.json
 // (shards, their SHA-256 and blocks), not inside it: inside, it would break

@@ -5,7 +5,7 @@
 #include <chrono>
 #include <filesystem>
 
-#include "generators/ns3_table.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 #include "pipeline/provenance.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"

@@ -1,5 +1,5 @@
 // Stage `raysweep ns3-table`: a channel dataset -> the lookup table ns-3's
-// Raysweep models read (generators/ns3_table.hpp, schemas/raysweep_ns3_table.schema.json).
+// Raysweep models read (generators/ns3_table/ns3_table.hpp, schemas/raysweep_ns3_table.schema.json).
 #pragma once
 
 #include <cstdint>

@@ -15,7 +15,7 @@
 #include <set>
 #include <sstream>
 
-#include "generators/dataset_reader.hpp"
+#include "generators/dataset/dataset_reader.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/sumo_net.hpp"
 #include "pipeline/preview.hpp"

@@ -7,7 +7,6 @@
 #include <fstream>
 #include <sstream>
 
-#include "generators/dataset_schema.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "generators/sinr/outcomes.hpp"
 #include "generators/sinr/sinr_file.hpp"

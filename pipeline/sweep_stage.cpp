@@ -13,9 +13,9 @@
 #include <map>
 #include <set>
 
-#include "generators/dataset_writer.hpp"
-#include "generators/frame_block.hpp"
-#include "generators/store_level.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/dataset/store_level.hpp"
+#include "generators/sweep/frame_block.hpp"
 #include "meshkit/errors.hpp"
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/vehicle_classes.hpp"

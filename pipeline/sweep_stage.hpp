@@ -1,7 +1,7 @@
 // Stage `raysweep sweep`: a SUMO FCD trace swept through the tracer, frame by
 // frame, into an HDF5 channel dataset (schemas/).
 //
-// Crash safety: frames are committed in blocks (generators/frame_block.hpp)
+// Crash safety: frames are committed in blocks (generators/sweep/frame_block.hpp)
 // under <out>.parts/; the dataset is assembled from the blocks at the end into
 // a temporary file that is renamed into place. After a kill, --resume keeps
 // the committed blocks (when config and inputs are unchanged) and traces the
@@ -20,7 +20,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/sweep.hpp"
+#include "generators/sweep/sweep.hpp"
 #include "meshkit/scene.hpp"
 #include "pipeline/fcd.hpp"
 #include "pipeline/settings/settings.hpp"

@@ -1,6 +1,6 @@
 #include "pipeline/trace_h5.hpp"
 
-#include "generators/frame_record.hpp"
+#include "generators/sweep/frame_record.hpp"
 #include "pipeline/staged_output.hpp"
 #include "pipeline/version.hpp"
 

@@ -9,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
 #include "pipeline/trace_inputs.hpp"
 #include "tracer/channel.hpp"
 #include "tracer/solver.hpp"

@@ -3,8 +3,6 @@
 // trace plus one block per column.
 #include "generators/sinr/channel_trace.hpp"
 
-#include <hdf5.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,16 +11,14 @@
 #include <type_traits>
 #include <utility>
 
-#include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
-#include "generators/ns3_table.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/dataset/frame_step.hpp"
+#include "generators/hdf5/checked_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators::sinr {
 
 namespace {
-
-using hdf5::Handle;
 
 // Raised by finalize(): from_records() callers see an invalid_argument, load()
 // turns it into an InputError naming `element`.
@@ -61,15 +57,15 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
 
   const hsize_t frames = r.dataset("/frames/time_s").rows();
   t.time_.reserve(frames);
-  r.dataset("/frames/time_s").scan<double>(H5T_NATIVE_DOUBLE, frames, 1,
+  r.dataset("/frames/time_s").scan<double>(frames, 1,
                  [&](std::size_t, const auto& b) { t.time_.insert(t.time_.end(), b.begin(), b.end()); });
   // offsets[f] must be the running sum of the counts; the sum closes the table.
   auto read_csr = [&](const std::string& offset, const std::string& count, std::vector<std::uint64_t>& out) {
     out.reserve(frames + 1);
-    r.dataset(offset).scan<std::uint64_t>(H5T_NATIVE_UINT64, frames, 1,
+    r.dataset(offset).scan<std::uint64_t>(frames, 1,
                           [&](std::size_t, const auto& b) { out.insert(out.end(), b.begin(), b.end()); });
     std::uint64_t sum = 0;
-    r.dataset(count).scan<std::uint64_t>(H5T_NATIVE_UINT64, frames, 1, [&](std::size_t start, const auto& b) {
+    r.dataset(count).scan<std::uint64_t>(frames, 1, [&](std::size_t start, const auto& b) {
       for (std::size_t i = 0; i < b.size(); sum += b[i++])
         if (out[start + i] != sum)
           r.fail(offset, "row " + std::to_string(start + i) + " is " + std::to_string(out[start + i]) +
@@ -85,42 +81,39 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
     r.fail("/node_states/node", std::to_string(states) + " rows but /frames/node_count sums to " +
                                     std::to_string(t.state_offset_.back()));
   t.states_.resize(states);
-  r.dataset("/node_states/node").scan<std::uint32_t>(H5T_NATIVE_UINT32, states, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/node").scan<std::uint32_t>(states, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) t.states_[s + i].node = b[i];
   });
-  r.dataset("/node_states/position").scan<double>(H5T_NATIVE_DOUBLE, states, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/position").scan<double>(states, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeState& n = t.states_[s + i];
       n.x = b[3 * i], n.y = b[3 * i + 1], n.z = b[3 * i + 2];
     }
   });
-  r.dataset("/node_states/velocity").scan<float>(H5T_NATIVE_FLOAT, states, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/velocity").scan<float>(states, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeState& n = t.states_[s + i];
       n.vx = b[3 * i], n.vy = b[3 * i + 1], n.vz = b[3 * i + 2];
     }
   });
-  r.dataset("/node_states/heading_deg").scan<float>(H5T_NATIVE_FLOAT, states, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/node_states/heading_deg").scan<float>(states, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) t.states_[s + i].heading_deg = b[i];
   });
 
   const hsize_t nodes = r.dataset("/nodes/id").rows();
   t.nodes_.resize(nodes);
-  Handle str(H5Tcopy(H5T_C_S1), H5Tclose);
-  if (!str.valid() || H5Tset_size(str.get(), H5T_VARIABLE) < 0 || H5Tset_cset(str.get(), H5T_CSET_UTF8) < 0)
-    r.fail("/nodes", "cannot create the string type");
   for (auto [p, field] : {std::pair{"/nodes/id", &NodeInfo::id}, std::pair{"/nodes/vclass", &NodeInfo::vclass},
                           std::pair{"/nodes/vtype", &NodeInfo::vtype}})
-    r.dataset(p).scan<char*>(str.get(), nodes, 1, [&, field = field](std::size_t s, const auto& b) {
+    r.dataset(p).scan<char*>(nodes, 1, [&, field = field](std::size_t s, const auto& b) {
       for (std::size_t i = 0; i < b.size(); ++i) t.nodes_[s + i].*field = b[i] ? b[i] : "";
     });
-  r.dataset("/nodes/kind").scan<std::uint8_t>(H5T_NATIVE_UINT8, nodes, 1, [&](std::size_t s, const auto& b) {
+  r.dataset("/nodes/kind").scan<std::uint8_t>(nodes, 1, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size(); ++i) {
       if (b[i] > 1) r.fail("/nodes/kind", "row " + std::to_string(s + i) + ": unknown node kind " + std::to_string(b[i]));
       t.nodes_[s + i].kind = static_cast<NodeKind>(b[i]);
     }
   });
-  r.dataset("/nodes/dimensions").scan<float>(H5T_NATIVE_FLOAT, nodes, 3, [&](std::size_t s, const auto& b) {
+  r.dataset("/nodes/dimensions").scan<float>(nodes, 3, [&](std::size_t s, const auto& b) {
     for (std::size_t i = 0; i < b.size() / 3; ++i) {
       NodeInfo& n = t.nodes_[s + i];
       n.length_m = b[3 * i], n.width_m = b[3 * i + 1], n.height_m = b[3 * i + 2];
@@ -132,17 +125,17 @@ ChannelTrace ChannelTrace::load(const std::string& path) {
     r.fail("/links/tx", std::to_string(links) + " rows but /frames/link_count sums to " +
                             std::to_string(t.link_offset_.back()));
   t.links_.resize(links);
-  auto link_column = [&](const char* p, hid_t mtype, auto member) {
+  auto link_column = [&](const char* p, auto member) {
     using T = std::remove_reference_t<decltype(Link{}.*member)>;
-    r.dataset(p).scan<T>(mtype, links, 1, [&](std::size_t s, const auto& b) {
+    r.dataset(p).scan<T>(links, 1, [&](std::size_t s, const auto& b) {
       for (std::size_t i = 0; i < b.size(); ++i) t.links_[s + i].*member = b[i];
     });
   };
-  link_column("/links/tx", H5T_NATIVE_UINT32, &Link::tx);
-  link_column("/links/rx", H5T_NATIVE_UINT32, &Link::rx);
-  link_column("/links/gain_incoherent_db", H5T_NATIVE_FLOAT, &Link::gain_db);
-  link_column("/links/los_class", H5T_NATIVE_UINT8, &Link::los_class);
-  link_column("/links/flags", H5T_NATIVE_UINT8, &Link::flags);
+  link_column("/links/tx", &Link::tx);
+  link_column("/links/rx", &Link::rx);
+  link_column("/links/gain_incoherent_db", &Link::gain_db);
+  link_column("/links/los_class", &Link::los_class);
+  link_column("/links/flags", &Link::flags);
   // The channel models and the ns-3 table take the LoS class as a code of three
   // (a 88 reached the table writer, whose error named its own output:
   // tests/fuzz/fuzz_dataset_h5).

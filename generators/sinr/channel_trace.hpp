@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset.hpp"
+#include "generators/dataset/dataset.hpp"
 
 namespace raysweep::generators::sinr {
 

@@ -1,11 +1,9 @@
 // SINR outcome file (raysweep-sinr): streaming writer and schedule reader. The
 // datasets, their file types, shapes, chunk shapes, units and descriptions come
 // from the embedded schema (schemas/raysweep_sinr.schema.json) through the shared
-// column machinery (generators/hdf5_columns.hpp); this file knows which record
+// column machinery (generators/hdf5/column_file.hpp); this file knows which record
 // field goes where and refuses records that would make an invalid file.
 #include "generators/sinr/sinr_file.hpp"
-
-#include <hdf5.h>
 
 #include <algorithm>
 #include <cmath>
@@ -13,9 +11,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include "generators/dataset_schema.hpp"
-#include "generators/hdf5_columns.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/hdf5/column_file.hpp"
 #include "meshkit/errors.hpp"
 
 namespace raysweep::generators::sinr {
@@ -375,7 +372,7 @@ std::vector<T> schema_column(const hdf5::CheckedFile& f, const std::string& grou
   d.expect_dtype(spec.at("dtype"));
   d.expect(shape.size() == 2 ? hdf5::Extents{std::nullopt, width} : hdf5::Extents{std::nullopt});
   *rows = d.rows();
-  return d.read<T>(hdf5::native_type<T>(), 0, *rows, width);
+  return d.read<T>(0, *rows, width);
 }
 
 }  // namespace

@@ -3,7 +3,7 @@
 // transmissions that overlapped each reception, and PRR per link and per RAT.
 // Layout: schemas/README.md; machine-readable: schemas/raysweep_sinr.schema.json
 // (embedded at build time, like the channel schema). validate_dataset() and
-// dataset_info() (generators/dataset_schema.hpp) accept both formats.
+// dataset_info() (generators/formats.hpp) accept both formats.
 //
 //   SinrWriter w(path, header);
 //   for (...) w.add_transmission(t);       // all transmissions, in schedule order
@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset.hpp"
+#include "generators/dataset/dataset.hpp"
 #include "generators/sinr/types.hpp"
 
 namespace raysweep::generators::sinr {
@@ -89,3 +89,16 @@ struct SinrSchedule {
 SinrSchedule read_sinr_schedule(const std::string& path);
 
 }  // namespace raysweep::generators::sinr
+
+namespace raysweep::generators {
+
+// The embedded schemas/raysweep_sinr.schema.json text, and parsed.
+const std::string& sinr_schema_json();
+const nlohmann::json& sinr_schema();
+
+}  // namespace raysweep::generators
+
+namespace raysweep::generators::schema {
+struct FileFormat;
+extern const FileFormat kSinrFile;  // for validate_dataset() (schema_sinr.cpp)
+}  // namespace raysweep::generators::schema

@@ -109,67 +109,75 @@ SendCam(Ptr<Socket> socket, uint32_t node, uint32_t bytes, Time period, Time end
     }
 }
 
-} // namespace
-
-int
-main(int argc, char* argv[])
+// The command line.
+struct Settings
 {
-    const auto wallStart = std::chrono::steady_clock::now();
     std::string tableFile, outDir;
     double start = NAN, duration = NAN, rateHz = 10, txPowerDbm = 23, noiseFigureDb = 9;
     uint32_t packetBytes = 300, seed = 1;
+};
+
+// Parses the command line into s; the exit status when it is unusable (0: go on).
+int
+ParseSettings(int argc, char* argv[], Settings& s)
+{
     CommandLine cmd(__FILE__);
-    cmd.AddValue("table", "raysweep ns-3 table (.h5)", tableFile);
-    cmd.AddValue("out", "output folder (receptions.csv, summary.json)", outDir);
-    cmd.AddValue("start", "simulation start in the table's time (s; default: the first frame)", start);
-    cmd.AddValue("duration", "simulated time (s; default: to the end of the table)", duration);
-    cmd.AddValue("packet-bytes", "CAM size (bytes)", packetBytes);
-    cmd.AddValue("rate-hz", "CAMs per second per vehicle", rateHz);
-    cmd.AddValue("tx-power-dbm", "transmit power (dBm)", txPowerDbm);
-    cmd.AddValue("noise-figure-db", "receiver noise figure (dB)", noiseFigureDb);
-    cmd.AddValue("seed", "run number of ns-3's random streams (send phases, backoff)", seed);
+    cmd.AddValue("table", "raysweep ns-3 table (.h5)", s.tableFile);
+    cmd.AddValue("out", "output folder (receptions.csv, summary.json)", s.outDir);
+    cmd.AddValue("start", "simulation start in the table's time (s; default: the first frame)", s.start);
+    cmd.AddValue("duration", "simulated time (s; default: to the end of the table)", s.duration);
+    cmd.AddValue("packet-bytes", "CAM size (bytes)", s.packetBytes);
+    cmd.AddValue("rate-hz", "CAMs per second per vehicle", s.rateHz);
+    cmd.AddValue("tx-power-dbm", "transmit power (dBm)", s.txPowerDbm);
+    cmd.AddValue("noise-figure-db", "receiver noise figure (dB)", s.noiseFigureDb);
+    cmd.AddValue("seed", "run number of ns-3's random streams (send phases, backoff)", s.seed);
     cmd.Parse(RaysweepCommandLineArgs(argc, argv));
-    if (tableFile.empty() || outDir.empty())
+    if (s.tableFile.empty() || s.outDir.empty())
     {
         std::cerr << "usage: raysweep-ns3-cam --table T.h5 --out DIR [--start S] [--duration S] "
                      "[--packet-bytes N] [--rate-hz F] [--tx-power-dbm P] [--seed N]\n";
         return 2;
     }
-    if (!(rateHz > 0) || packetBytes == 0 || seed == 0)
+    if (!(s.rateHz > 0) || s.packetBytes == 0 || s.seed == 0)
     {
         std::cerr << "raysweep-ns3-cam: --rate-hz must be > 0, --packet-bytes and --seed >= 1\n";
         return 2;
     }
-    RngSeedManager::SetSeed(1);
-    RngSeedManager::SetRun(seed);
+    return 0;
+}
 
-    RaysweepHelper rs(tableFile);
-    g.table = rs.GetTable();
-    const auto& t = g.table->Data();
+// Fills in the default start and duration from the table's frames; the exit
+// status when the interval leaves the table (0: go on).
+int
+ResolveInterval(const raysweep::generators::Ns3Table& t, Settings& s)
+{
     if (t.frames() == 0)
     {
-        std::cerr << tableFile << ": the table has no frames\n";
+        std::cerr << s.tableFile << ": the table has no frames\n";
         return 2;
     }
     const double first = t.time(0), last = t.time(t.frames() - 1) + t.frame_step();
-    if (std::isnan(start))
+    if (std::isnan(s.start))
     {
-        start = first;
+        s.start = first;
     }
-    if (std::isnan(duration))
+    if (std::isnan(s.duration))
     {
-        duration = last - start;
+        s.duration = last - s.start;
     }
-    if (start < first || !(duration > 0) || start + duration > last + 1e-9)
+    if (s.start < first || !(s.duration > 0) || s.start + s.duration > last + 1e-9)
     {
-        std::cerr << tableFile << ": --start " << start << " --duration " << duration << " leaves the table ("
+        std::cerr << s.tableFile << ": --start " << s.start << " --duration " << s.duration << " leaves the table ("
                   << first << " s .. " << last << " s)\n";
         return 2;
     }
-    const Time tStart = Seconds(start), tEnd = Seconds(start + duration);
+    return 0;
+}
 
-    g.nodes = rs.CreateNodes();
-
+// 802.11p devices on every node over a channel whose loss is the table's.
+NetDeviceContainer
+InstallWifi(RaysweepHelper& rs, const Settings& s)
+{
     Ptr<YansWifiChannel> channel = CreateObject<YansWifiChannel>();
     Ptr<RaysweepPropagationLossModel> loss = rs.CreatePropagationLossModel();
     loss->TraceConnectWithoutContext("RxPower", MakeCallback(&OnRxPower));
@@ -177,9 +185,9 @@ main(int argc, char* argv[])
     channel->SetPropagationDelayModel(CreateObject<ConstantSpeedPropagationDelayModel>());
     YansWifiPhyHelper phy;
     phy.SetChannel(channel);
-    phy.Set("TxPowerStart", DoubleValue(txPowerDbm));
-    phy.Set("TxPowerEnd", DoubleValue(txPowerDbm));
-    phy.Set("RxNoiseFigure", DoubleValue(noiseFigureDb));
+    phy.Set("TxPowerStart", DoubleValue(s.txPowerDbm));
+    phy.Set("TxPowerEnd", DoubleValue(s.txPowerDbm));
+    phy.Set("RxNoiseFigure", DoubleValue(s.noiseFigureDb));
     phy.SetErrorRateModel("ns3::NistErrorRateModel");
     NqosWaveMacHelper mac = NqosWaveMacHelper::Default();
     Wifi80211pHelper wifi = Wifi80211pHelper::Default();
@@ -193,11 +201,17 @@ main(int argc, char* argv[])
         Ptr<WifiNetDevice> dev = DynamicCast<WifiNetDevice>(devices.Get(i));
         dev->GetPhy()->TraceConnectWithoutContext("PhyTxBegin", MakeCallback(&OnTxBegin));
     }
+    return devices;
+}
 
+// A broadcast socket pair per node; each node's first CAM at a random phase of the period.
+void
+ScheduleCams(const NetDeviceContainer& devices, const Settings& s, Time tStart, Time tEnd)
+{
     PacketSocketHelper sockets;
     sockets.Install(g.nodes);
     Ptr<UniformRandomVariable> phase = CreateObject<UniformRandomVariable>();
-    const Time period = Seconds(1.0 / rateHz);
+    const Time period = Seconds(1.0 / s.rateHz);
     for (uint32_t i = 0; i < g.nodes.GetN(); ++i)
     {
         PacketSocketAddress addr;
@@ -213,16 +227,15 @@ main(int argc, char* argv[])
         tx->SetAllowBroadcast(true);
         g.sockets.push_back(rx);
         g.sockets.push_back(tx);
-        Simulator::Schedule(tStart + Seconds(phase->GetValue(0, 1.0 / rateHz)), &SendCam, tx, i, packetBytes, period,
-                            tEnd);
+        Simulator::Schedule(tStart + Seconds(phase->GetValue(0, 1.0 / s.rateHz)), &SendCam, tx, i, s.packetBytes,
+                            period, tEnd);
     }
-    Simulator::Stop(tEnd);
-    Simulator::Run();
-    Simulator::Destroy();
-    g.sockets.clear();
+}
 
-    // Outputs.
-    std::filesystem::create_directories(outDir);
+// DIR/receptions.csv, written whole before it takes its name; false when it cannot be written.
+bool
+WriteReceptions(const std::string& outDir, const raysweep::generators::Ns3Table& t)
+{
     const std::string csv = outDir + "/receptions.csv";
     {
         std::ofstream o(csv + ".tmp");
@@ -239,20 +252,24 @@ main(int argc, char* argv[])
         if (!o.flush())
         {
             std::cerr << csv << ": cannot write\n";
-            return 1;
+            return false;
         }
     }
     std::filesystem::rename(csv + ".tmp", csv);
+    return true;
+}
 
-    const double binM = 25;
+// The receptions' PRR in distance bins of binM metres; *received counts the received ones.
+nlohmann::json
+PrrByDistance(double binM, uint64_t* received)
+{
     std::map<int, std::pair<uint64_t, uint64_t>> bins;
-    uint64_t received = 0;
     for (const Row& r : g.rows)
     {
         auto& b = bins[static_cast<int>(r.distance / binM)];
         ++b.first;
         b.second += r.received ? 1 : 0;
-        received += r.received ? 1 : 0;
+        *received += r.received ? 1 : 0;
     }
     nlohmann::json prr = nlohmann::json::array();
     for (const auto& [k, b] : bins)
@@ -263,18 +280,30 @@ main(int argc, char* argv[])
                        {"received", b.second},
                        {"prr", static_cast<double>(b.second) / static_cast<double>(b.first)}});
     }
+    return prr;
+}
+
+// DIR/summary.json: counts, PRR (overall and by distance), settings, the
+// table's provenance and the wall time since wallStart.
+nlohmann::json
+WriteSummary(const Settings& s, const raysweep::generators::Ns3Table& t,
+             std::chrono::steady_clock::time_point wallStart)
+{
+    const double binM = 25;
+    uint64_t received = 0;
+    const nlohmann::json prr = PrrByDistance(binM, &received);
     const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wallStart).count();
     nlohmann::json summary = {
-        {"table", tableFile},
+        {"table", s.tableFile},
         {"table_provenance", t.provenance()},
         {"settings",
-         {{"start_s", start},
-          {"duration_s", duration},
-          {"packet_bytes", packetBytes},
-          {"rate_hz", rateHz},
-          {"tx_power_dbm", txPowerDbm},
-          {"noise_figure_db", noiseFigureDb},
-          {"seed", seed},
+         {{"start_s", s.start},
+          {"duration_s", s.duration},
+          {"packet_bytes", s.packetBytes},
+          {"rate_hz", s.rateHz},
+          {"tx_power_dbm", s.txPowerDbm},
+          {"noise_figure_db", s.noiseFigureDb},
+          {"seed", s.seed},
           {"phy", "YansWifiPhy, NistErrorRateModel, 802.11p OCB 10 MHz, OfdmRate6MbpsBW10MHz"},
           {"ns3_version", "3.37"}}},
         {"packets_sent", g.sent},
@@ -284,13 +313,53 @@ main(int argc, char* argv[])
         {"prr_bin_m", binM},
         {"prr_by_distance", prr},
         {"wall_seconds", wall}};
-    const std::string js = outDir + "/summary.json";
+    const std::string js = s.outDir + "/summary.json";
     {
         std::ofstream o(js + ".tmp");
         o << summary.dump(1) << "\n";
     }
     std::filesystem::rename(js + ".tmp", js);
-    std::cout << outDir << ": " << g.sent << " packets, " << g.rows.size() << " receptions, PRR "
-              << summary["prr"].get<double>() << ", " << wall << " s\n";
+    return summary;
+}
+
+} // namespace
+
+int
+main(int argc, char* argv[])
+{
+    const auto wallStart = std::chrono::steady_clock::now();
+    Settings s;
+    if (const int status = ParseSettings(argc, argv, s))
+    {
+        return status;
+    }
+    RngSeedManager::SetSeed(1);
+    RngSeedManager::SetRun(s.seed);
+
+    RaysweepHelper rs(s.tableFile);
+    g.table = rs.GetTable();
+    const auto& t = g.table->Data();
+    if (const int status = ResolveInterval(t, s))
+    {
+        return status;
+    }
+    const Time tStart = Seconds(s.start), tEnd = Seconds(s.start + s.duration);
+
+    g.nodes = rs.CreateNodes();
+    const NetDeviceContainer devices = InstallWifi(rs, s);
+    ScheduleCams(devices, s, tStart, tEnd);
+    Simulator::Stop(tEnd);
+    Simulator::Run();
+    Simulator::Destroy();
+    g.sockets.clear();
+
+    std::filesystem::create_directories(s.outDir);
+    if (!WriteReceptions(s.outDir, t))
+    {
+        return 1;
+    }
+    const nlohmann::json summary = WriteSummary(s, t, wallStart);
+    std::cout << s.outDir << ": " << g.sent << " packets, " << g.rows.size() << " receptions, PRR "
+              << summary["prr"].get<double>() << ", " << summary["wall_seconds"].get<double>() << " s\n";
     return 0;
 }

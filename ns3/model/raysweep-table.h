@@ -8,7 +8,7 @@
 #include "ns3/nstime.h"
 #include "ns3/object.h"
 
-#include "generators/ns3_table.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 
 #include <cstdint>
 #include <map>

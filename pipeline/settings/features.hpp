@@ -1,10 +1,10 @@
 // [features]: the context features `raysweep features` (and `raysweep ml`)
-// compute per link from the scene and the traffic (generators/context_features.hpp).
+// compute per link from the scene and the traffic (generators/sweep/context_features.hpp).
 #pragma once
 
 #include <nlohmann/json.hpp>
 
-#include "generators/context_features.hpp"
+#include "generators/sweep/context_features.hpp"
 
 namespace raysweep::pipeline {
 

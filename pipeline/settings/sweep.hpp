@@ -8,8 +8,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/dataset.hpp"
-#include "generators/sweep.hpp"
+#include "generators/dataset/dataset.hpp"
+#include "generators/sweep/sweep.hpp"
 #include "tracer/channel.hpp"
 
 namespace raysweep::pipeline {

@@ -12,7 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "generators/sweep.hpp"
+#include "generators/sweep/sweep.hpp"
 
 namespace raysweep::pipeline {
 

@@ -3,7 +3,7 @@
 Per link the file holds a corridor raster in the link's own frame (A cells along tx->rx, C cells
 across, half width W) with building heights and materials, and up to K other vehicles in the
 corridor (along, across, height, length, width, class code). Layout: schemas/README.md (written by
-`raysweep features`, generators/context_features.hpp); see python/ml/README.md.
+`raysweep features`, generators/sweep/context_features.hpp); see python/ml/README.md.
 """
 import json
 

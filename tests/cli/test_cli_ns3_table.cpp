@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <string>
 
-#include "generators/dataset_schema.hpp"
-#include "generators/ns3_table.hpp"
+#include "generators/formats.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 #include "meshkit/errors.hpp"
 #include "ns3_table_fixtures.hpp"
 #include "test_util.hpp"

@@ -15,7 +15,7 @@
 
 #include "meshkit/gltf_io.hpp"
 #include "meshkit/mitsuba_io.hpp"
-#include "pipeline/trace_inputs.hpp"
+#include "meshkit/vehicle_library.hpp"
 #include "test_util.hpp"
 
 using namespace raysweep;
@@ -156,7 +156,7 @@ TEST(CliPeerExport, MaterialsCarryP2040ValuesAtTheCarrier) {
 
 TEST(CliPeerExport, VehiclesStandAtTheirPosesWithTheirAntennas) {
   const Export e = export_snapshot("vehicles");
-  pipeline::VehicleLibrary library;
+  meshkit::VehicleLibrary library;
   const auto car = library.model("passenger").dims(), bus = library.model("bus").dims();
   // The car heads east from its front bumper at (120, 40); the bus north
   // from (140, 20). SUMO's point is the front bumper's centre.

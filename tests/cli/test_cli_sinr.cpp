@@ -10,7 +10,7 @@
 #include <cmath>
 #include <limits>
 
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
 #include "generators/sinr/sinr_file.hpp"
 #include "test_util.hpp"
 

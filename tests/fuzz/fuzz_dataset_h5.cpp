@@ -4,10 +4,10 @@
 // sinr::ChannelTrace::load (the SINR stage), build_ns3_table (`raysweep
 // ns3-table`), write_features (`raysweep features`) and dataset_info
 // (`raysweep info`); the feature file it writes is validated.
-#include "generators/context_features.hpp"
-#include "generators/dataset_reader.hpp"
-#include "generators/dataset_schema.hpp"
+#include "generators/dataset/dataset_reader.hpp"
+#include "generators/formats.hpp"
 #include "generators/sinr/channel_trace.hpp"
+#include "generators/sweep/context_features.hpp"
 #include "h5_bases.hpp"
 #include "h5_mutate.hpp"
 

@@ -1,7 +1,7 @@
 // ns-3 lookup tables (HDF5, format raysweep-ns3-table), structure-aware (see
 // h5_mutate.hpp): generators::Ns3Table::load, what ns-3's Raysweep models
 // read, with lookups of every frame and pair, and dataset_info (`raysweep info`).
-#include "generators/dataset_schema.hpp"
+#include "generators/formats.hpp"
 #include "h5_bases.hpp"
 #include "h5_mutate.hpp"
 

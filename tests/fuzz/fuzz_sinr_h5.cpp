@@ -1,7 +1,7 @@
 // SINR outcome files (HDF5, format raysweep-sinr), structure-aware (see
 // h5_mutate.hpp): sinr::read_sinr_schedule (`raysweep sinr --schedule-from`)
 // and dataset_info (`raysweep info`).
-#include "generators/dataset_schema.hpp"
+#include "generators/formats.hpp"
 #include "h5_bases.hpp"
 #include "h5_mutate.hpp"
 

@@ -8,8 +8,8 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset_writer.hpp"
-#include "generators/ns3_table.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 #include "generators/sinr/sinr_file.hpp"
 
 namespace raysweep::fuzz {

@@ -17,8 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include "generators/dataset.hpp"
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset.hpp"
+#include "generators/dataset/dataset_writer.hpp"
 #include "test_util.hpp"
 
 namespace raysweep::generators::fixtures {

@@ -1,4 +1,4 @@
-// Frame-to-frame coherence (generators/sweep.hpp, tracer/coherence.hpp):
+// Frame-to-frame coherence (generators/sweep/sweep.hpp, tracer/coherence.hpp):
 // a coherent sweep against the same sweep searching every frame from
 // scratch (coherence = false): nothing moving gives the same bits; moving
 // traffic stays inside the error budget (gain difference p99 <= 0.25 dB,
@@ -12,7 +12,7 @@
 #include <cmath>
 #include <random>
 
-#include "generators/sweep.hpp"
+#include "generators/sweep/sweep.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 

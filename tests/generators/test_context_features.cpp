@@ -1,4 +1,4 @@
-// Context features (generators/context_features.hpp) on hand-built scenes:
+// Context features (generators/sweep/context_features.hpp) on hand-built scenes:
 // a building across the corridor lands in the cells it covers with its
 // height and material, a vehicle in the corridor in the slot with its
 // position and size, and nothing the tracer computed is read.
@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "dataset_fixtures.hpp"
-#include "generators/context_features.hpp"
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/formats.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/sweep/context_features.hpp"
 #include "meshkit/errors.hpp"
 #include "scene_fixtures.hpp"
 #include "tracer/trace_scene.hpp"
@@ -227,9 +227,9 @@ TEST_F(ContextFeatures, TheFileReadsNothingTheTracerComputedAndValidates) {
   // The row of link (tx 0, rx 1) holds what link_features gives.
   raysweep::generators::hdf5::CheckedFile f((dir / "fa.h5").string());
   f.open();
-  const auto count = f.dataset("/vehicles/count").read_all<std::uint8_t>(H5T_NATIVE_UINT8, 10);
-  const auto along = f.dataset("/vehicles/along_m").read_all<float>(H5T_NATIVE_FLOAT, 10, spec.max_vehicles);
-  const auto height = f.dataset("/corridor/height").read<std::uint8_t>(H5T_NATIVE_UINT8, 0, 1, spec.cells());
+  const auto count = f.dataset("/vehicles/count").read_all<std::uint8_t>(10);
+  const auto along = f.dataset("/vehicles/along_m").read_all<float>(10, spec.max_vehicles);
+  const auto height = f.dataset("/corridor/height").read<std::uint8_t>(0, 1, spec.cells());
   EXPECT_EQ(count[0], 1);
   EXPECT_NEAR(along[0], 70, 1e-4);
   EXPECT_TRUE(std::isnan(along[1]));

@@ -17,9 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
 #include "dataset_fixtures.hpp"
+#include "generators/dataset/dataset_schema.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/formats.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"

@@ -1,4 +1,4 @@
-// Frame blocks (generators/frame_block.cpp): the exact round trip, the streamed
+// Frame blocks (generators/sweep/frame_block.cpp): the exact round trip, the streamed
 // layout read back in chunks, truncated and corrupt blocks.
 #include <gtest/gtest.h>
 
@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "dataset_fixtures.hpp"
-#include "generators/frame_block.hpp"
+#include "generators/sweep/frame_block.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"

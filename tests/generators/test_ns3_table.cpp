@@ -1,4 +1,4 @@
-// The ns-3 lookup table (generators/ns3_table.hpp): build from a channel
+// The ns-3 lookup table (generators/ns3_table/ns3_table.hpp): build from a channel
 // dataset whose CFRs are known in closed form, read back, validate and
 // summarise. Corrupt files and the ns3-table command:
 // tests/cli/test_cli_ns3_table.cpp.
@@ -9,9 +9,9 @@
 #include <fstream>
 #include <limits>
 
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
-#include "generators/ns3_table.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/formats.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 #include "meshkit/errors.hpp"
 #include "ns3_table_fixtures.hpp"
 #include "test_util.hpp"

@@ -12,12 +12,12 @@
 #include <vector>
 
 #include "dataset_fixtures.hpp"
-#include "generators/dataset_reader.hpp"
-#include "generators/dataset_schema.hpp"
-#include "generators/dataset_writer.hpp"
-#include "generators/hdf5_file.hpp"
-#include "generators/ns3_table.hpp"
-#include "generators/store_level.hpp"
+#include "generators/dataset/dataset_reader.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/dataset/store_level.hpp"
+#include "generators/formats.hpp"
+#include "generators/hdf5/checked_file.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"
 #include "test_util.hpp"

@@ -7,9 +7,8 @@
 #include <cmath>
 #include <map>
 
-#include "generators/sweep.hpp"
+#include "generators/sweep/sweep.hpp"
 #include "meshkit/vehicle_model.hpp"
-#include "pipeline/trace_inputs.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 

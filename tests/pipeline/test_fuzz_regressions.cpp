@@ -12,8 +12,8 @@
 #include <string>
 
 #include "fuzz/h5_bases.hpp"
-#include "generators/dataset_reader.hpp"
-#include "generators/dataset_schema.hpp"
+#include "generators/dataset/dataset_reader.hpp"
+#include "generators/formats.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"

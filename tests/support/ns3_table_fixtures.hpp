@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset_writer.hpp"
-#include "generators/ns3_table.hpp"
+#include "generators/dataset/dataset_writer.hpp"
+#include "generators/ns3_table/ns3_table.hpp"
 
 namespace raysweep::test::ns3 {
 

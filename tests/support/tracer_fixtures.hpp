@@ -1,6 +1,6 @@
 // Hand-built scenes for the tracer tests: quads (ground, walls) and boxes
 // with known planes, materials and object names. The vehicle library's models
-// (which need the pipeline library) are in vehicle_fixtures.hpp.
+// are in vehicle_fixtures.hpp.
 #pragma once
 
 #include <string>

@@ -52,7 +52,7 @@ Traced trace_street(std::shared_ptr<const tracer::PrecomputeStore> store, double
   t.scene = std::make_unique<tracer::TraceScene>(street());
   if (store) t.scene->set_precompute_store(store);
   const auto car = add_library_model(*t.scene, "passenger");
-  pipeline::VehicleLibrary lib;
+  meshkit::VehicleLibrary lib;
   auto truck_model = lib.model("truck");
   meshkit::Scene truck = meshkit::to_scene(truck_model);
   for (auto& mesh : truck.meshes)

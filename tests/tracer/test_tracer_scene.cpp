@@ -9,7 +9,7 @@
 #include <cmath>
 
 #include "meshkit/vehicle_model.hpp"
-#include "pipeline/trace_inputs.hpp"
+#include "meshkit/vehicle_library.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 
@@ -167,7 +167,7 @@ TEST(TracerScene, MovingReflectorShiftsDoppler) {
   // the reflected path shortens at 2 v cos(theta).
   meshkit::Scene s;
   tracer::TraceScene scene(s);
-  pipeline::VehicleLibrary lib;
+  meshkit::VehicleLibrary lib;
   const auto& b = lib.model("bus");
   const auto bus = scene.add_vehicle_model("bus", meshkit::to_scene(b), b.antenna);
   // Bus heading +x with its front face at x = 10 (front bumper), driving

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset.hpp"
+#include "generators/dataset/dataset.hpp"
 #include "generators/sinr/channel_trace.hpp"
 
 namespace raysweep::generators::sinr::channel_fixtures {

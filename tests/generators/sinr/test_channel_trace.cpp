@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "channel_fixtures.hpp"
-#include "generators/dataset_writer.hpp"
+#include "generators/dataset/dataset_writer.hpp"
 #include "generators/sinr/channel_models.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "hdf5_test_util.hpp"

@@ -16,7 +16,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset_schema.hpp"
+#include "generators/formats.hpp"
 #include "generators/sinr/channel_models.hpp"
 #include "generators/sinr/channel_trace.hpp"
 #include "generators/sinr/outcomes.hpp"

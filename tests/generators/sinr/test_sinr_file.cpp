@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "generators/dataset_schema.hpp"
+#include "generators/formats.hpp"
 #include "generators/sinr/sinr_file.hpp"
 #include "hdf5_test_util.hpp"
 #include "meshkit/errors.hpp"

@@ -1,1 +1,0 @@
-#include "generators/generators.hpp"

@@ -1,0 +1,178 @@
+// The traffic sweep: frame after frame, move the vehicle instances, decide
+// which pairs must be traced again, trace them and turn the results into
+// dataset records (dataset.hpp).
+//
+// Two ways to avoid work, both optional and both measured (see README):
+// - The update rule of the VaN3Twin paper: a vehicle's mesh is moved only
+//   when it has moved more than max(d0, v * Tc) since its last update; until
+//   then it is traced where it was last placed. d0 = Tc = 0 moves every
+//   vehicle that changed at all (exact tracing).
+// - The path cache. `global` (the paper): any update clears every pair.
+//   `per_pair`: an update invalidates the pairs the vehicle belongs to, the
+//   pairs without any path (on any move), the pairs with a stored path
+//   segment or the direct segment within the
+//   margin of the vehicle's old or new bounding sphere, and the pairs whose
+//   "strong" ellipsoid (foci at the two antennas, sum of distances up to the
+//   strongest stored path's length plus the margin) meets either sphere. A
+//   pair kept from the cache therefore still has exactly its stored paths
+//   and LoS class; what it can miss is a new path via a vehicle that moved
+//   outside the strong ellipsoid, which is longer, hence weaker in spreading
+//   loss, than the strongest path it has (measured by `raysweep` benchmarks).
+//
+// Frame-to-frame coherence (`coherence`, off by default): a pair that must be
+// computed again is not searched from scratch but re-solved from the paths
+// its last search found (tracer/coherence.hpp: the same face sequences and
+// edges solved exactly at the new positions, the labels and the direct path
+// afresh). A pair is re-solved only while the paths that traffic makes and
+// unmakes from frame to frame (reflections on vehicles, diffuse records)
+// carry a small share of its power (`coherence_volatile_share`): a LoS
+// pair, a pair dominated by the city's walls. It is searched again when its
+// recall no longer holds (a label changed, recalled paths carrying more than
+// that share vanished, it came into or went out of range), when
+// `coherence_frames` frames have passed since its last search,
+// when either end has moved more than `coherence_margin_m` since then, and
+// when a vehicle new to the sweep arrives inside its strong ellipsoid.
+// What that can miss, and for how long, is in docs/tracer.md.
+//
+// The cache, the update rule and the coherence restart at every block of
+// `block_frames` frames (every vehicle placed afresh, every pair traced), so
+// each block depends only on its own frames: a resumed run or a shard
+// commits the same blocks as an uninterrupted one.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "generators/dataset/dataset.hpp"
+#include "tracer/channel.hpp"
+#include "tracer/coherence.hpp"
+#include "tracer/solver.hpp"
+
+namespace raysweep::generators {
+
+enum class CacheMode { none, per_pair, global };
+const char* cache_mode_name(CacheMode m);
+CacheMode parse_cache_mode(const std::string& s);  // "none" | "per_pair" | "global"; std::invalid_argument otherwise
+
+struct SweepOptions {
+  double d0_m = 0;
+  double coherence_time_s = 0;
+  CacheMode cache = CacheMode::per_pair;
+  double cache_margin_m = 0.5;
+  std::uint32_t block_frames = 50;
+  bool coherence = false;  // off by default: see docs/tracer.md (it does not pay yet)
+  std::uint32_t coherence_frames = 10;  // a pair is searched at least this often (frames)
+  double coherence_margin_m = 8;        // or once an end moved this far since its last search
+  // A pair is re-solved only while the paths a search may find anew as
+  // traffic moves (on vehicles, diffuse) carried at most this share of its
+  // power at its last search, and while recalled paths that vanished (off
+  // their faces or edges) carry at most this share.
+  double coherence_volatile_share = 0.05;
+  // And only while its direct path carried at least this share, and (with
+  // coherence_clear_zone_only) no obstacle entered its first Fresnel zone:
+  // a strong direct path outweighs the paths that appear between searches.
+  double coherence_direct_share = 0.5;
+  bool coherence_clear_zone_only = true;
+  std::optional<tracer::OfdmGrid> cfr;  // store each link's frequency response
+};
+
+// A vehicle in the current frame.
+struct SweepVehicle {
+  std::uint32_t node = 0;   // dataset node index (stable over the sweep)
+  std::uint32_t model = 0;  // TraceScene model index
+  tracer::Vec3 position{0, 0, 0};  // front-bumper centre on the road (SUMO)
+  double heading_deg = 0;          // clockwise from north (SUMO)
+  tracer::Vec3 velocity{0, 0, 0};
+  double length_m = 5, width_m = 2, height_m = 1.5;  // for the bounding sphere
+};
+
+// A static antenna (road-side unit).
+struct SweepRsu {
+  std::uint32_t node = 0;
+  tracer::Vec3 position{0, 0, 0};  // antenna
+};
+
+struct SweepStats {
+  std::uint64_t frames = 0;
+  std::uint64_t links = 0;           // pair-frames written
+  std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
+  std::uint64_t searched_links = 0;  // of those, searched from scratch (the rest re-solved coherently)
+  std::uint64_t recall_broken = 0;   // re-solves whose recall no longer held (then searched)
+  std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
+  std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
+  std::uint64_t paths = 0;
+  std::uint64_t rays = 0;
+  double trace_seconds = 0;
+  double resolve_seconds = 0;  // of which the coherent re-solves
+  double hit_ratio() const { return links ? 1.0 - static_cast<double>(traced_links) / links : 0.0; }
+};
+
+class Sweep {
+ public:
+  // `rsus` are present in every frame. The scene's vehicle models must be
+  // registered before step() names them.
+  Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, const tracer::RadioConfig& radio,
+        const SweepOptions& options, std::vector<SweepRsu> rsus);
+
+  // One frame. `frame_index` counts frames from the start of the sweep (it
+  // places the block boundaries); vehicles in any order, node ids unique.
+  FrameRecord step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles);
+
+  const SweepStats& stats() const { return stats_; }
+  // Object table of the dataset: the static objects, then one per node
+  // (`node_ids` in node order).
+  std::vector<std::string> object_names(const std::vector<std::string>& node_ids) const;
+
+ private:
+  struct Placed {
+    SweepVehicle v;  // pose it was last placed at
+  };
+  struct CachedLink {
+    LinkRecord link;
+    std::vector<PathRecord> paths;
+    std::vector<InteractionRecord> interactions;
+    std::vector<std::complex<float>> cfr;
+    tracer::Vec3 a, b;  // antenna positions it was traced with
+    double reach = 0;   // strongest stored path's length (or the direct distance + lambda / 2) + margin
+    std::vector<tracer::Vec3> points;         // each path's polyline a, interactions..., b
+    std::vector<std::uint32_t> path_points;   // polyline sizes
+    tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point
+    // Coherence: what the pair's last search found, and when.
+    std::shared_ptr<tracer::PairRecall> recall;
+    std::uint64_t searched_frame = 0;
+  };
+  // step()'s phases (the two structs are defined in sweep.cpp).
+  struct Motion;
+  struct Antennas;
+  using NodePair = std::pair<std::uint32_t, std::uint32_t>;  // local antenna indices, first < second
+  Motion place_vehicles(const std::vector<SweepVehicle>& vehicles);
+  void pose_vehicles();
+  Antennas antennas() const;
+  bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
+  bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
+  CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
+  std::vector<NodePair> coherent_pairs(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                                       std::vector<NodePair>& todo) const;
+  tracer::Snapshot trace_todo(std::uint64_t frame, const Antennas& ant, const Motion& motion,
+                              std::vector<NodePair>& todo, std::vector<unsigned char>& searched);
+  void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
+  void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
+                    const std::vector<std::uint32_t>& node_of, FrameRecord& frame);
+  void forget_departed();
+
+  tracer::TraceScene& scene_;
+  tracer::TracerConfig tracer_;
+  tracer::RadioConfig radio_;
+  SweepOptions options_;
+  std::vector<SweepRsu> rsus_;
+  std::map<std::uint32_t, Placed> placed_;
+  std::map<std::uint64_t, CachedLink> cache_;
+  SweepStats stats_;
+};
+
+}  // namespace raysweep::generators
