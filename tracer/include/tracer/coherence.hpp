@@ -22,7 +22,7 @@
 // therefore reports, per pair, whether the recall is still intact (both
 // labels unchanged, every recalled path still there, the range status
 // unchanged); the caller searches the pair again when it is not, and at an
-// interval and a displacement of its choosing (generators/sweep.hpp,
+// interval and a displacement of its choosing (generators/sweep/sweep.hpp,
 // docs/tracer.md).
 #pragma once
 
@@ -77,7 +77,7 @@ struct PairRecall {
   bool complete = true;
   // The power share of the paths a search finds anew as traffic moves
   // (reflections on vehicles, diffuse records, vehicle edges): the sweep
-  // re-solves a pair only while it is small (generators/sweep.hpp).
+  // re-solves a pair only while it is small (generators/sweep/sweep.hpp).
   double volatile_share = 0;
   // The direct path's share: new paths (a wall's reflection coming out of a
   // building's shadow) are weaker than a strong direct path.
