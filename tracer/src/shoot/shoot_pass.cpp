@@ -38,8 +38,11 @@ std::vector<DiffuseTargets> diffuse_targets(const SnapshotPlan& plan) {
 
 // The rough static faces one convex face hides whole from each source: the
 // diffuse gathering's shadow rays from them to it are blocked, so not cast.
+// With the image search's slab bounds, a face they bound by one slab or more
+// (a convex face across every segment to it, first in line or not).
 std::vector<std::vector<std::uint64_t>> hidden_faces(const SnapshotPlan& plan) {
   const auto& faces = plan.faces();
+  const SlabBounds* slabs = plan.image_search ? &plan.slab_bounds() : nullptr;
   std::vector<std::vector<std::uint64_t>> hidden(plan.n);
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t j) {
     if (!plan.is_source[j]) return;
@@ -48,8 +51,10 @@ std::vector<std::vector<std::uint64_t>> hidden_faces(const SnapshotPlan& plan) {
     for (std::uint32_t f = 0; f < faces.static_count; ++f) {
       if (!(plan.em.material(plan.scene.material(faces.refs[f])).scattering.s > 0)) continue;
       const FaceRef self{0, f};
-      if (hidden_by_convex_face(plan.scene, faces, plan.nodes[j].position, &faces.outline[faces.outline_begin[f]],
-                                faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
+      if (slabs ? slabs->at(j, f) >= 1
+                : hidden_by_convex_face(plan.scene, faces, plan.nodes[j].position,
+                                        &faces.outline[faces.outline_begin[f]],
+                                        faces.outline_begin[f + 1] - faces.outline_begin[f], &self, faces.tol[f]))
         bits[f >> 6] |= std::uint64_t{1} << (f & 63);
     }
   });
