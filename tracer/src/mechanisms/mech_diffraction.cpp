@@ -21,10 +21,12 @@ namespace {
 // Edges each node can see the outside of, within `range` of it, and that
 // no single convex face hides whole from it (hidden_by_convex_face: then
 // every leg between the node and the edge is blocked): the cheap half of
-// the diffraction test (a pair needs an edge both its ends see).
+// the diffraction test (a pair needs an edge both its ends see). With
+// `slabs`, each node's walls are tried by their planes first.
 std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, const ImageFaces& faces,
                                                    const std::vector<Node>& nodes,
-                                                   const std::vector<unsigned char>& wanted, double range) {
+                                                   const std::vector<unsigned char>& wanted, double range,
+                                                   const SlabBounds* slabs) {
   const auto& edges = scene.edges();
   std::vector<std::vector<std::uint32_t>> seen(nodes.size());
   tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t i) {
@@ -38,7 +40,7 @@ std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, cons
       if (norm(p - (e.a + z * e.e)) > range) continue;
       if (edge_angle(e, v) > e.n * kPi) continue;
       const Vec3 ends[2] = {e.a, e.b};
-      if (hidden_by_convex_face(scene, faces, p, ends, 2, nullptr, 0)) continue;
+      if (hidden_by_convex_face(scene, faces, p, ends, 2, nullptr, 0, slabs ? &slabs->walls[i] : nullptr)) continue;
       seen[i].push_back(k);
     }
   });
@@ -59,7 +61,8 @@ class Diffraction final : public Mechanism {
     const auto t0 = std::chrono::steady_clock::now();
     const auto& cfg = plan.cfg;
     if (cfg.diffraction && !plan.scene.edges().empty()) {
-      seen_ = edges_seen(plan.scene, plan.faces(), plan.nodes, plan.is_source, plan.range);
+      seen_ = edges_seen(plan.scene, plan.faces(), plan.nodes, plan.is_source, plan.range,
+                         plan.image_search ? &plan.slab_bounds() : nullptr);
       if (cfg.diffraction_reflection) prepare_reflected(plan);
     }
     if (cfg.vehicle_edge_diffraction && plan.n > 1) prepare_vehicle_edges(plan);
