@@ -144,7 +144,7 @@ SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const s
   b.lb.assign(nodes.size() * faces.static_count, 0);
   b.walls.resize(nodes.size());
   tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t n) {
-    if (wanted[n])
+    if (wanted[n] && faces.static_count > 0)
       node_slab_bounds(scene, faces, nodes[n].position, cap + 1, &b.lb[n * faces.static_count], b.walls[n]);
   });
   return b;
