@@ -356,7 +356,7 @@ json vdb_meta(const TraceSettings& trace, const RadioMapSettings& s, const std::
                {"tx", txs.dump()},
                {"semantics", "voxel (i,j,k) holds the value at transform.indexToWorld(i,j,k) = (i v, j v, z_min + k v), "
                              "its centre (a point value, not a voxel average)"},
-               {"method", "per-voxel exact paths through the tracer (generators/radiomap_solver.hpp): LoS, "
+               {"method", "per-voxel exact paths through the tracer (tracer/radiomap_solver.hpp): LoS, "
                           "specular/refracted order <= 2 by the image method, first-order UTD diffraction; no "
                           "diffuse scattering and no order >= 3 (docs/radiomap.md)"},
                {"tracer_config", config.dump()},
