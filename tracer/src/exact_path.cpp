@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include "em/field.hpp"
+#include "em/physical_optics.hpp"
 
 namespace raysweep::tracer {
 
@@ -22,6 +23,8 @@ struct Event {
   FaceRef face;
   Vec3 point;
   Vec3 dir_in;
+  int leg = 0;            // the segment that ends here
+  double travelled = 0;   // the unfolded length from the source to here
 };
 
 // Image method: mirror the source in each plane, then walk back from the
@@ -57,14 +60,30 @@ bool unfold(const TraceScene& scene, const Node& from, const Node& to, const std
   return true;
 }
 
+// A reflection on a vehicle face by physical optics: the face's Kirchhoff
+// integral over an infinite mirror's, with the wave at the face taken as the
+// image source's (the unfolded length before it) seen from the receiver's
+// image (the unfolded length after). A chain of such faces multiplies their
+// factors (docs/tracer.md states what this leaves out).
+cdouble facet_po(const TraceScene& scene, const Event& ev, const Vec3& normal, const Vec3& dir_out, double length,
+                 double k) {
+  thread_local std::vector<std::array<Vec3, 3>> triangles;
+  triangles.clear();
+  scene.face_triangles(ev.face, triangles);
+  const Vec3 source = ev.point - ev.travelled * ev.dir_in;
+  const Vec3 receiver = ev.point + (length - ev.travelled) * dir_out;
+  return facet_factor(triangles, normal, source, receiver, k);
+}
+
 // The path's field along its events (the transmit pattern's vector, then
 // each interaction in its own TE/TM basis), its delay, angles and Doppler;
 // nullopt when a crossed slab is opaque.
 std::optional<Path> path_field(const TraceScene& scene, const Electromagnetics& em, const Node& from, const Node& to,
                                const std::vector<FaceRef>& faces, const std::vector<Event>& events,
-                               const std::array<Vec3, kMaxDepth + 1>& dirs, double length) {
+                               const std::array<Vec3, kMaxDepth + 1>& dirs, double length, bool facet_po_on) {
   const std::size_t k = faces.size();
   CVec3 e = cvec(antenna_field(em.radio().antenna, dirs[0], from.forward));
+  cdouble facets = 1.0;
   Path path;
   path.interactions.reserve(events.size());
   for (const auto& ev : events) {
@@ -76,6 +95,8 @@ std::optional<Path> path_field(const TraceScene& scene, const Electromagnetics& 
       // Rough surfaces keep sqrt(1 - S^2) of the specular field when the
       // scattered part is traced (effective roughness energy partition).
       e = reflect_field(e, k_in, p.normal, em.reflection(mat, cos_theta), em.specular_keep(mat));
+      if (facet_po_on && scene.is_vehicle(ev.face))
+        facets *= facet_po(scene, ev, p.normal, dirs[ev.leg + 1], length, 2 * kPi / em.wavelength());
     } else {
       const auto c = em.coefficients(mat, cos_theta);
       if (std::abs(c.t.te) < 1e-12 && std::abs(c.t.tm) < 1e-12) return std::nullopt;  // opaque
@@ -92,6 +113,7 @@ std::optional<Path> path_field(const TraceScene& scene, const Electromagnetics& 
   path.tau_s = length / kSpeedOfLight;
   const double phase = -2 * kPi * std::fmod(length / lambda, 1.0);
   path.a = (lambda / (4 * kPi * length)) * cdot(e, f_rx) * std::polar(1.0, phase);
+  if (facets != 1.0) path.a *= facets;
   path.theta_t = zenith(dirs[0]);
   path.phi_t = azimuth(dirs[0]);
   path.theta_r = zenith(arrival);
@@ -215,14 +237,15 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
           break;
         }
     if (!reached) return std::nullopt;
-    if (ends_on_face) events.push_back(Event{true, faces[m], b, dir});
+    if (ends_on_face) events.push_back(Event{true, faces[m], b, dir, static_cast<int>(m), length});
   }
   if (transmissions > config.max_transmissions) {
     if (over_cap) *over_cap = true;
     return std::nullopt;
   }
 
-  return path_field(scene, em, from, to, faces, events, dirs, length);
+  return path_field(scene, em, from, to, faces, events, dirs, length,
+                    config.facet_reflection == FacetReflection::po);
 }
 
 std::optional<Path> compute_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,

@@ -45,6 +45,20 @@ enum class DiffuseIntegration {
   hybrid
 };
 
+// How a reflection on a vehicle face is weighted. Vehicle bodies are meshes
+// of facets a few tens of centimetres wide, smaller than the first Fresnel
+// zone at their reflection point (0.5-1 m across at 10-50 m).
+enum class FacetReflection {
+  // Physical optics: the Kirchhoff integral over the face, in the Fresnel
+  // approximation about the specular point (tracer/src/em/physical_optics.hpp),
+  // as a factor on the GO reflection.
+  po,
+  // Geometrical optics: every face an infinite mirror (what Sionna RT does).
+  // Default: po on the faces GO finds alone leaves curved bodies' return
+  // short (docs/decisions.md).
+  go
+};
+
 struct TracerConfig {
   int max_depth = 3;  // specular reflections per path (0..kMaxDepth)
   bool los = true;
@@ -152,6 +166,7 @@ struct TracerConfig {
   // direct line) diffracts by its knife edge alone; between 1.0 and 0.55 r1
   // its UTD paths fade out linearly in clearance, so the two never add.
   bool vehicle_edge_diffraction = false;
+  FacetReflection facet_reflection = FacetReflection::go;
   // Vehicle-edge paths weaker than this (dB) below the pair's direct
   // free-space power are not traced (their field is computed first, the
   // legs' rays only for those above): away from its shadow and reflection
