@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Single-frame spikes of the wideband gain, with vehicle faces reflecting by
-physical optics (`tracer.facet_reflection = "po"`, the default) and as
-infinite mirrors ("go").
+physical optics (`tracer.facet_reflection = "po"`) and as infinite mirrors
+("go", the default).
 
 A spike is a link-frame whose wideband gain (gain_incoherent_db, floored at
 the sensitivity floor) is more than 6 dB away from both its neighbours (the

@@ -123,15 +123,15 @@ const Table<TraceSettings>& tracer_table() {
           "first-order UTD diffraction on the vehicles' edges (roofs, hoods, pillars); a vehicle in the direct "
           "path's first zone diffracts by its knife edge instead (faded between 1.0 and 0.55 r1)");
     t.toggle("vehicle edges");
+    t.key("vehicle_edge_floor_db", number(), FIELD(tracer.vehicle_edge_floor_db), "dB",
+          "with vehicle_edge_diffraction: vehicle-edge paths this far below the pair's direct free-space power "
+          "are not traced");
     t.key("facet_reflection",
           enumeration<tracer::FacetReflection>({{"po", tracer::FacetReflection::po},
                                                 {"go", tracer::FacetReflection::go}}),
           FIELD(tracer.facet_reflection), "",
           "reflections on vehicle faces: po (physical optics over the face, which returns a fraction of a "
           "mirror's power when the face is smaller than its Fresnel zone) or go (every face an infinite mirror)");
-    t.key("vehicle_edge_floor_db", number(), FIELD(tracer.vehicle_edge_floor_db), "dB",
-          "with vehicle_edge_diffraction: vehicle-edge paths this far below the pair's direct free-space power "
-          "are not traced");
     t.key("path_threshold_db", number(), FIELD(tracer.path_threshold_db), "dB",
           "paths this far below a pair's strongest are dropped and counted (<= 0: keep all)");
     t.key("range_margin_db", number(), FIELD(tracer.range_margin_db), "dB",
