@@ -74,6 +74,7 @@ Sweep::Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, cons
     throw std::invalid_argument(
         "sweep: d0, coherence time, cache margin, coherence margin and volatile share must be >= 0");
   if (options_.coherence_frames == 0) throw std::invalid_argument("sweep: coherence_frames must be at least 1");
+  if (options_.lattice_frames == 0) throw std::invalid_argument("sweep: lattice_frames must be at least 1");
   std::sort(rsus_.begin(), rsus_.end(), [](const SweepRsu& a, const SweepRsu& b) { return a.node < b.node; });
 }
 
@@ -320,7 +321,15 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
     if (!intact[p]) search.push_back(coherent[p]);
   stats_.recall_broken += search.size() - todo.size();
   std::sort(search.begin(), search.end());
-  tracer::Snapshot traced = tracer::trace_pairs(scene_, ant.nodes, search, tracer_, radio_);
+  tracer::Snapshot traced;
+  if (options_.lattice_frames > 1) {
+    tracer::TracerConfig turned = tracer_;
+    turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
+    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_, carried_sequences(frame, ant, search));
+    for (std::size_t p = 0; p < search.size(); ++p) keep_proposed(frame, ant, search[p], traced.pairs[p]);
+  } else {
+    traced = tracer::trace_pairs(scene_, ant.nodes, search, tracer_, radio_);
+  }
   stats_.searched_links += search.size();
 
   // Merge the two in pair order.
@@ -339,6 +348,63 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
     searched.push_back(!from_coherent);
   }
   return out;
+}
+
+// Per pair of `search`, the sequences its searches proposed in the last
+// lattice_frames - 1 frames whose vehicles are all still here, as this
+// frame's FaceRefs (older ones forgotten).
+std::vector<tracer::FaceSequences> Sweep::carried_sequences(std::uint64_t frame, const Antennas& ant,
+                                                            const std::vector<NodePair>& search) {
+  std::map<std::uint32_t, std::uint32_t> slot_of;  // dataset node -> vehicle slot
+  for (std::uint32_t s = 0; s < ant.slot_node.size(); ++s) slot_of[ant.slot_node[s]] = s;
+  std::vector<tracer::FaceSequences> carried(search.size());
+  for (std::size_t p = 0; p < search.size(); ++p) {
+    auto it = kept_.find(pair_key(ant.node_of[search[p].first], ant.node_of[search[p].second]));
+    if (it == kept_.end()) continue;
+    auto& kept = it->second;
+    std::erase_if(kept, [&](const KeptSequence& k) { return frame - k.second >= options_.lattice_frames; });
+    for (const auto& [faces, last] : kept) {
+      std::vector<tracer::FaceRef> now;
+      for (const auto& f : faces) {
+        if (f.instance == 0) {
+          now.push_back(f);
+          continue;
+        }
+        auto at = slot_of.find(f.instance - 1);
+        if (at == slot_of.end()) break;
+        now.push_back({at->second + 1, f.face});
+      }
+      if (now.size() == faces.size()) carried[p].push_back(std::move(now));
+    }
+  }
+  return carried;
+}
+
+// A searched pair's proposed sequences into its kept set, stamped `frame`.
+void Sweep::keep_proposed(std::uint64_t frame, const Antennas& ant, NodePair pair, const tracer::PairResult& res) {
+  auto& kept = kept_[pair_key(ant.node_of[pair.first], ant.node_of[pair.second])];
+  std::vector<KeptSequence> fresh;
+  for (const auto& faces : res.proposed) {
+    std::vector<tracer::FaceRef> named = faces;
+    for (auto& f : named)
+      if (f.instance > 0) f.instance = ant.slot_node.at(f.instance - 1) + 1;
+    fresh.emplace_back(std::move(named), frame);
+  }
+  std::sort(fresh.begin(), fresh.end());
+  // Merge: a sequence proposed again takes this frame's stamp.
+  std::vector<KeptSequence> merged;
+  merged.reserve(kept.size() + fresh.size());
+  std::size_t a = 0, b = 0;
+  while (a < kept.size() || b < fresh.size()) {
+    if (b == fresh.size() || (a < kept.size() && kept[a].first < fresh[b].first)) {
+      ++stats_.carried;
+      merged.push_back(std::move(kept[a++]));
+    } else {
+      if (a < kept.size() && kept[a].first == fresh[b].first) ++a;
+      merged.push_back(std::move(fresh[b++]));
+    }
+  }
+  kept = std::move(merged);
 }
 
 // Every node's state (RSUs and `vehicles`, sorted), in node order.
@@ -397,6 +463,7 @@ void Sweep::forget_departed() {
     };
     it = present(a) && present(b) ? std::next(it) : cache_.erase(it);
   }
+  std::erase_if(kept_, [this](const auto& k) { return !cache_.count(k.first); });
 }
 
 FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
@@ -405,6 +472,7 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
   if (block_start) {
     placed_.clear();
     cache_.clear();
+    kept_.clear();
   }
   const Motion motion = place_vehicles(vehicles);
   if (motion.scene_changed || block_start) pose_vehicles();

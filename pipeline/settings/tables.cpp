@@ -240,6 +240,9 @@ const Table<SweepSettings>& sweep_table() {
           "coherence: and only while its direct path carries at least this share of its power");
     t.key("coherence_clear_zone_only", boolean(), FIELD(options.coherence_clear_zone_only), "",
           "coherence: and only while nothing is in the direct path's first Fresnel zone");
+    t.key("lattice_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.lattice_frames), "",
+          "turned lattices: each frame's rays on a lattice turned by the frame, and a searched pair also solves "
+          "the sequences the rays of its last lattice_frames - 1 frames proposed (1: off)");
     return t;
   }();
   return t;

@@ -52,6 +52,9 @@ const Table<TraceSettings>& tracer_table() {
     t.toggle("refraction");
     t.key("rays_per_source", integer<int>(at_least(1)), FIELD(tracer.rays_per_source), "",
           "shoot-and-bounce rays per antenna (orders the image search does not cover)");
+    t.key("lattice_turn", integer<std::uint64_t>(), FIELD(tracer.lattice_turn), "",
+          "the ray lattice turned by the rotation this number draws (0: not turned; an equally good lattice "
+          "with other directions; sweeps with lattice_frames > 1 turn it every frame)");
     t.key("vehicle_bundles", boolean(), FIELD(tracer.vehicle_bundles), "",
           "shoot-and-bounce rays aimed at each vehicle the lattice covers sparsely, from each antenna and through "
           "the static faces whose beams reach it (chains of two vehicles, a cabin then another vehicle)");

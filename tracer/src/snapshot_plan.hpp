@@ -65,6 +65,9 @@ struct SnapshotPlan {
   double shoot_seconds() const { return shoot_ ? shoot_->seconds : 0; }
 
   std::uint64_t search_rays = 0;  // rays cast by the per-snapshot stages
+  // Sequences carried from earlier searches, per pair (trace_pairs); null
+  // when none are: then PairResult::proposed stays empty.
+  const std::vector<FaceSequences>* carried = nullptr;
 
  private:
   mutable std::unique_ptr<ImageFaces> faces_;

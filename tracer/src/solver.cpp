@@ -161,12 +161,18 @@ void count_paths(Snapshot& snap) {
   }
 }
 
-Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes, const PairList& pairs,
-                     const TracerConfig& cfg, const RadioConfig& radio) {
+namespace {
+
+Snapshot trace_planned(const TraceScene& scene, const std::vector<Node>& nodes, const PairList& pairs,
+                       const TracerConfig& cfg, const RadioConfig& radio, const std::vector<FaceSequences>* carried) {
   validate(cfg, radio);
   check_nodes(nodes);
+  if (carried && carried->size() != pairs.size())
+    throw std::invalid_argument("trace_pairs: carried sequences for " + std::to_string(carried->size()) +
+                                " pairs, " + std::to_string(pairs.size()) + " pairs given");
   const Electromagnetics em(scene.material_names(), radio, cfg.materials, cfg.diffuse);
   SnapshotPlan plan(scene, nodes, pairs, cfg, radio, em);
+  plan.carried = carried;
   Snapshot snap;
   const Mechanisms mechanisms = make_mechanisms(cfg);
   for (const auto& m : mechanisms) m->prepare(plan, snap.stats);
@@ -191,6 +197,18 @@ Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes, co
   for (auto r : pair_rays) snap.stats.rays += r;
   count_paths(snap);
   return snap;
+}
+
+}  // namespace
+
+Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes, const PairList& pairs,
+                     const TracerConfig& cfg, const RadioConfig& radio) {
+  return trace_planned(scene, nodes, pairs, cfg, radio, nullptr);
+}
+
+Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes, const PairList& pairs,
+                     const TracerConfig& cfg, const RadioConfig& radio, const std::vector<FaceSequences>& carried) {
+  return trace_planned(scene, nodes, pairs, cfg, radio, &carried);
 }
 
 Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes, const TracerConfig& cfg,

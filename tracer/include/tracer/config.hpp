@@ -2,6 +2,7 @@
 // TOML config; the pipeline parses them, the tracer only consumes them).
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 
@@ -69,6 +70,9 @@ struct TracerConfig {
   // bundled cities (`raysweep tradeoff`, docs/performance.md); 4096 is 19-23 % faster
   // and 1.02 dB off on the demo city (the diffuse estimator's variance).
   int rays_per_source = 6144;
+  // The lattice's turn (fibonacci_sphere(n, turn); 0: not turned). Sweeps
+  // with [sweep] lattice_frames > 1 set it per frame (generators/sweep).
+  std::uint64_t lattice_turn = 0;
   // Reception sphere radius = factor * angular ray spacing * unfolded length.
   // Candidates are refined exactly, so a generous sphere only costs time.
   double reception_radius_factor = 1.0;

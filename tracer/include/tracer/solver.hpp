@@ -56,6 +56,10 @@ struct PairResult {
   // Candidate face sequences that only a vehicle blocks (their recall lets
   // a coherent sweep see the path return: tracer/coherence.hpp).
   std::vector<std::vector<FaceRef>> near_misses;
+  // The face sequences this trace's rays and beams proposed (the search's
+  // sample, not its exhaustive image orders), from the lower end, sorted;
+  // filled only when the trace was given carried sequences (trace_pairs).
+  std::vector<std::vector<FaceRef>> proposed;
   PathStats stats;
   std::uint32_t candidates = 0;         // face sequences refined
   // Candidates dropped for crossing > max_transmissions slabs (the image
@@ -109,6 +113,18 @@ Snapshot trace_snapshot(const TraceScene& scene, const std::vector<Node>& nodes,
 Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
                      const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& config,
                      const RadioConfig& radio);
+
+// The same, with face sequences carried from earlier searches solved
+// besides this search's candidates: carried[p] for pairs[p], each from the
+// pair's lower end. Each is solved exactly (image method, exact visibility),
+// so a carried sequence that no longer holds adds nothing; and each pair's
+// PairResult::proposed is filled, for the caller to carry on. A sweep that
+// carries a few frames' proposals on turned lattices samples as many
+// lattices as frames (generators/sweep/sweep.hpp).
+using FaceSequences = std::vector<std::vector<FaceRef>>;
+Snapshot trace_pairs(const TraceScene& scene, const std::vector<Node>& nodes,
+                     const std::vector<std::pair<std::uint32_t, std::uint32_t>>& pairs, const TracerConfig& config,
+                     const RadioConfig& radio, const std::vector<FaceSequences>& carried);
 
 // Diffuse power (the sum of |a|^2 of the diffuse records trace_pairs gives
 // the pairs (src, r)) at each of `receivers` from node `src`'s shoot-and-

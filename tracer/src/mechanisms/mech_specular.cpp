@@ -181,15 +181,23 @@ class Specular final : public Mechanism {
         if (plan.in_range[p]) candidates_[p] = all;
     }
     ShootPass& pass = plan.shoot();
+    // What the rays and their beams proposed: this search's sample, which a
+    // caller carrying sequences keeps (PairResult::proposed).
+    std::vector<Sequences>& sampled = plan.carried ? proposed_ : candidates_;
+    if (plan.carried) proposed_.assign(plan.pairs.size(), {});
     for (std::size_t p = 0; p < pass.candidates.size(); ++p)
-      for (auto& faces : pass.candidates[p]) candidates_[p].push_back(std::move(faces));
+      for (auto& faces : pass.candidates[p]) sampled[p].push_back(std::move(faces));
     pass.candidates.clear();
-    if (!pass.beams.empty()) beam_search(plan, pass, candidates_, stats);
+    if (!pass.beams.empty()) beam_search(plan, pass, sampled, stats);
     // Thread-local order varies; the sorted set does not.
     tbb::parallel_for(std::size_t{0}, candidates_.size(), [&](std::size_t p) {
       auto& c = candidates_[p];
-      std::sort(c.begin(), c.end());
-      c.erase(std::unique(c.begin(), c.end()), c.end());
+      if (plan.carried) {
+        sort_unique(proposed_[p]);
+        c.insert(c.end(), proposed_[p].begin(), proposed_[p].end());
+        c.insert(c.end(), (*plan.carried)[p].begin(), (*plan.carried)[p].end());
+      }
+      sort_unique(c);
     });
   }
 
@@ -200,12 +208,19 @@ class Specular final : public Mechanism {
       if (!sequence_path(plan, pair, faces, res, &blocked) && blocked == kVehicleBlocked)
         res.near_misses.push_back(faces);
     res.candidates += static_cast<std::uint32_t>(candidates.size());
+    if (!proposed_.empty()) res.proposed = proposed_[pair.slot];
   }
 
   double SnapshotStats::Timing::*pair_time() const override { return &SnapshotStats::Timing::exact; }
 
  private:
+  static void sort_unique(Sequences& c) {
+    std::sort(c.begin(), c.end());
+    c.erase(std::unique(c.begin(), c.end()), c.end());
+  }
+
   std::vector<Sequences> candidates_;  // per pair, sorted
+  std::vector<Sequences> proposed_;    // per pair, sorted: the rays' and beams' (with carried sequences only)
 };
 
 }  // namespace

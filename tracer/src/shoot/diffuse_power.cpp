@@ -35,7 +35,7 @@ std::vector<double> diffuse_power(const TraceScene& scene, const std::vector<Nod
   // The same rays, chunks and merge order as trace_pairs' shoot stage.
   TracerConfig local = cfg;
   local.specular = cfg.specular && cfg.candidates != CandidateSearch::exhaustive;
-  const auto lattice = fibonacci_sphere(cfg.rays_per_source);
+  const auto lattice = fibonacci_sphere(cfg.rays_per_source, cfg.lattice_turn);
   const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
   std::vector<DiffuseBins> bins(chunks);
   tbb::parallel_for(std::size_t{0}, chunks, [&](std::size_t c) {

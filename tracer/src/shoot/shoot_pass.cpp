@@ -177,7 +177,7 @@ ShootPass run_shoot_pass(const SnapshotPlan& plan) {
     hidden = hidden_faces(plan);
     for (auto& t : targets) t.hidden = &hidden;
   }
-  const auto lattice = fibonacci_sphere(cfg.rays_per_source);
+  const auto lattice = fibonacci_sphere(cfg.rays_per_source, cfg.lattice_turn);
   const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
   std::vector<ShootFinds> tasks(plan.sources.size() * chunks);
   const ImageFaces* faces = beam_search ? &plan.faces() : nullptr;
