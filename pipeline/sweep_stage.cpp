@@ -484,8 +484,8 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
                totals["write_seconds"].get<double>(), args.out, summary["store"].get<std::string>(),
                summary["bytes_per_link"].get<double>());
   if (options.lattice_frames > 1)
-    spdlog::info("turned lattices over {} frames: {} sequences carried into searches that the frame's own rays "
-                 "missed ({:.1f} a searched pair)",
+    spdlog::info("turned lattices over {} frames: {} paths and near misses that only sequences carried from "
+                 "earlier frames gave ({:.2f} a searched pair)",
                  options.lattice_frames, totals["carried_sequences"].get<std::uint64_t>(),
                  static_cast<double>(totals["carried_sequences"].get<std::uint64_t>()) /
                      std::max<std::uint64_t>(1, totals["searched_links"].get<std::uint64_t>()));

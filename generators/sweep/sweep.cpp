@@ -325,8 +325,9 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
   if (options_.lattice_frames > 1) {
     tracer::TracerConfig turned = tracer_;
     turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
-    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_, carried_sequences(frame, ant, search));
-    for (std::size_t p = 0; p < search.size(); ++p) keep_proposed(frame, ant, search[p], traced.pairs[p]);
+    const auto carried = carried_sequences(frame, ant, search);
+    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_, carried);
+    for (std::size_t p = 0; p < search.size(); ++p) keep_found(frame, ant, search[p], traced.pairs[p], carried[p]);
   } else {
     traced = tracer::trace_pairs(scene_, ant.nodes, search, tracer_, radio_);
   }
@@ -380,24 +381,43 @@ std::vector<tracer::FaceSequences> Sweep::carried_sequences(std::uint64_t frame,
   return carried;
 }
 
-// A searched pair's proposed sequences into its kept set, stamped `frame`.
-void Sweep::keep_proposed(std::uint64_t frame, const Antennas& ant, NodePair pair, const tracer::PairResult& res) {
-  auto& kept = kept_[pair_key(ant.node_of[pair.first], ant.node_of[pair.second])];
+// A searched pair's sequences proposed by this frame's rays, and those
+// carried that gave a path or a near miss, into its kept set stamped
+// `frame`: a proposal is kept K frames, a path while it holds and K after.
+void Sweep::keep_found(std::uint64_t frame, const Antennas& ant, NodePair pair, const tracer::PairResult& res,
+                       const tracer::FaceSequences& carried) {
+  using Seq = std::vector<tracer::FaceRef>;
+  std::vector<Seq> found = res.near_misses;
+  for (const auto& path : res.paths)
+    if (path.origin.kind == tracer::PathOrigin::Kind::sequence) found.push_back(path.origin.faces);
+  std::sort(found.begin(), found.end());
+  found.erase(std::unique(found.begin(), found.end()), found.end());
+  auto in = [](const std::vector<Seq>& sorted, const Seq& x) {
+    return std::binary_search(sorted.begin(), sorted.end(), x);
+  };
+  std::vector<Seq> sorted_carried = carried;
+  std::sort(sorted_carried.begin(), sorted_carried.end());
   std::vector<KeptSequence> fresh;
-  for (const auto& faces : res.proposed) {
-    std::vector<tracer::FaceRef> named = faces;
+  auto keep = [&](Seq named) {
     for (auto& f : named)
       if (f.instance > 0) f.instance = ant.slot_node.at(f.instance - 1) + 1;
     fresh.emplace_back(std::move(named), frame);
-  }
+  };
+  for (const auto& faces : res.proposed) keep(faces);
+  for (const auto& faces : found)
+    if (!in(res.proposed, faces) && in(sorted_carried, faces)) {  // not an exact enumeration's (found every frame)
+      ++stats_.carried;
+      keep(faces);
+    }
   std::sort(fresh.begin(), fresh.end());
-  // Merge: a sequence proposed again takes this frame's stamp.
+  if (fresh.empty()) return;
+  // Merge: a sequence found again takes this frame's stamp.
+  auto& kept = kept_[pair_key(ant.node_of[pair.first], ant.node_of[pair.second])];
   std::vector<KeptSequence> merged;
   merged.reserve(kept.size() + fresh.size());
   std::size_t a = 0, b = 0;
   while (a < kept.size() || b < fresh.size()) {
     if (b == fresh.size() || (a < kept.size() && kept[a].first < fresh[b].first)) {
-      ++stats_.carried;
       merged.push_back(std::move(kept[a++]));
     } else {
       if (a < kept.size() && kept[a].first == fresh[b].first) ++a;

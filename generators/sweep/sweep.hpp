@@ -34,14 +34,16 @@
 // when a vehicle new to the sweep arrives inside its strong ellipsoid.
 // What that can miss, and for how long, is in docs/tracer.md.
 //
-// Turned lattices (`lattice_frames` K > 1, off by default): every frame's
-// search shoots its lattice turned by a rotation drawn from the frame index
-// (tracer.lattice_turn), and a pair searched in a frame also solves the face
-// sequences the rays and beams proposed for it in the K - 1 frames before
-// (by the image method and exact visibility, so one that no longer holds
-// adds nothing). A pair's specular and refracted paths are then those of K
-// lattices' rays, at the cost of one lattice's shooting and a few more exact
-// solves. Diffuse records stay the frame's own.
+// Turned lattices (`lattice_frames` K > 1; 4 by default): every frame's
+// search shoots its lattice (and its vehicle bundles) turned by a rotation
+// drawn from the frame index (tracer.lattice_turn), and a pair searched in a
+// frame also solves the sampled sequences (the rays' and beams' proposals)
+// that gave it a path or a near miss in its K frames before, by the image
+// method and exact visibility: a path one lattice found stays while it holds
+// and K frames after, whatever the later lattices sample, and one that no
+// longer holds adds nothing. Over static scenery a frame thus has the paths
+// of every lattice so far; under traffic, of the last K frames' at least.
+// Diffuse records stay the frame's own lattice's.
 //
 // The cache, the update rule, the coherence and the carried sequences restart at every block of
 // `block_frames` frames (every vehicle placed afresh, every pair traced), so
@@ -87,9 +89,9 @@ struct SweepOptions {
   // a strong direct path outweighs the paths that appear between searches.
   double coherence_direct_share = 0.5;
   bool coherence_clear_zone_only = true;
-  // Turned lattices: a searched pair also solves the sequences its last
-  // lattice_frames - 1 frames' rays proposed (1: none, every frame the same lattice).
-  std::uint32_t lattice_frames = 1;
+  // Turned lattices: a searched pair also solves the sampled sequences that
+  // gave it a path in its last lattice_frames frames (1: none, every frame the same lattice).
+  std::uint32_t lattice_frames = 4;
   std::optional<tracer::OfdmGrid> cfr;  // store each link's frequency response
 };
 
@@ -122,7 +124,7 @@ struct SweepStats {
   std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
   std::uint64_t searched_links = 0;  // of those, searched from scratch (the rest re-solved coherently)
   std::uint64_t recall_broken = 0;   // re-solves whose recall no longer held (then searched)
-  std::uint64_t carried = 0;         // turned lattices: sequences carried into searches that this frame's rays missed
+  std::uint64_t carried = 0;         // turned lattices: paths (and near misses) that only carried sequences gave
   std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
   std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
   std::uint64_t paths = 0;
@@ -186,7 +188,8 @@ class Sweep {
   void forget_departed();
   std::vector<tracer::FaceSequences> carried_sequences(std::uint64_t frame, const Antennas& ant,
                                                        const std::vector<NodePair>& search);
-  void keep_proposed(std::uint64_t frame, const Antennas& ant, NodePair pair, const tracer::PairResult& res);
+  void keep_found(std::uint64_t frame, const Antennas& ant, NodePair pair, const tracer::PairResult& res,
+                  const tracer::FaceSequences& carried);
 
   tracer::TraceScene& scene_;
   tracer::TracerConfig tracer_;
@@ -195,9 +198,9 @@ class Sweep {
   std::vector<SweepRsu> rsus_;
   std::map<std::uint32_t, Placed> placed_;
   std::map<std::uint64_t, CachedLink> cache_;
-  // Turned lattices, per pair of dataset nodes: each sequence its searches'
-  // rays proposed (vehicle faces as FaceRef{dataset node + 1, face}), with
-  // the last frame that proposed it; sorted by sequence.
+  // Turned lattices, per pair of dataset nodes: each sampled sequence that
+  // gave a path or a near miss (vehicle faces as FaceRef{dataset node + 1,
+  // face}), with the last frame it did; sorted by sequence.
   using KeptSequence = std::pair<std::vector<tracer::FaceRef>, std::uint64_t>;
   std::map<std::uint64_t, std::vector<KeptSequence>> kept_;
   SweepStats stats_;

@@ -242,7 +242,7 @@ const Table<SweepSettings>& sweep_table() {
           "coherence: and only while nothing is in the direct path's first Fresnel zone");
     t.key("lattice_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.lattice_frames), "",
           "turned lattices: each frame's rays on a lattice turned by the frame, and a searched pair also solves "
-          "the sequences the rays of its last lattice_frames - 1 frames proposed (1: off)");
+          "the sampled sequences that gave it a path in its last lattice_frames frames (1: off)");
     return t;
   }();
   return t;

@@ -48,6 +48,7 @@ generators::SweepOptions options(bool coherence, bool every_pair = true) {
   generators::SweepOptions o;
   o.cache = CacheMode::none;  // every pair every frame: the comparison is the coherence's alone
   o.block_frames = 1000;
+  o.lattice_frames = 1;  // the coherence against one lattice's search (turned lattices: test_turned_lattices)
   o.coherence = coherence;
   if (every_pair) {
     o.coherence_volatile_share = 1;

@@ -118,6 +118,7 @@ TEST(Sweep, UpdateRuleMovesAMeshOnlyPastTheThreshold) {
   // more than 2 m from where it was last placed: at frames 5, 10, 15 (2.5 m).
   Canyon c;
   generators::SweepOptions opt;
+  opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.d0_m = 2.0;
   opt.block_frames = 1000;
   generators::Sweep sweep(c.scene, tracer_config(), {}, opt, {{0, {0, 8, 5}}});
@@ -148,6 +149,7 @@ TEST(Sweep, UpdateRuleMovesAMeshOnlyPastTheThreshold) {
 TEST(Sweep, PerPairCacheKeepsExactlyThePathsFreshTracingFinds) {
   Canyon c;
   generators::SweepOptions cached_opt, fresh_opt;
+  cached_opt.lattice_frames = fresh_opt.lattice_frames = 1;  // one lattice: compared with a fresh sweep's frame 0
   cached_opt.cache = CacheMode::per_pair;
   fresh_opt.cache = CacheMode::none;
   cached_opt.block_frames = fresh_opt.block_frames = 1000;
@@ -208,6 +210,7 @@ TEST(Sweep, PerPairCacheKeepsExactlyThePathsFreshTracingFinds) {
 TEST(Sweep, GlobalCacheRetracesEverythingOnAnyMove) {
   Canyon c;
   generators::SweepOptions opt;
+  opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.cache = CacheMode::global;
   opt.block_frames = 1000;
   generators::Sweep sweep(c.scene, tracer_config(), {}, opt, {});
@@ -237,6 +240,7 @@ TEST(Sweep, GlobalCacheRetracesEverythingOnAnyMove) {
 TEST(Sweep, EveryBlockStartsAfresh) {
   Canyon c;
   generators::SweepOptions opt;
+  opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.cache = CacheMode::per_pair;
   opt.d0_m = 100;  // nothing would ever move without the block restart
   opt.block_frames = 4;
@@ -265,6 +269,7 @@ TEST(Sweep, EveryBlockStartsAfresh) {
 TEST(Sweep, VehicleInteractionsNameTheNodeAndThreadsDoNotMatter) {
   Canyon c;
   generators::SweepOptions opt;
+  opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.block_frames = 1000;
   auto run = [&](int threads) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
@@ -305,6 +310,7 @@ TEST(Sweep, VehicleInteractionsNameTheNodeAndThreadsDoNotMatter) {
 TEST(Sweep, OutOfRangeLinksAndThresholdDropsAreRecorded) {
   Canyon c;
   generators::SweepOptions opt;
+  opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.cache = CacheMode::none;
   opt.coherence = false;  // every frame searched: its drops counted afresh
   tracer::RadioConfig radio;

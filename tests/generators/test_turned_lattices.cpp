@@ -175,10 +175,10 @@ TEST(TurnedLattice, CarriedSequencesAddExactlyTheirPaths) {
 }
 
 // Nothing moving: frame f of a sweep with lattice_frames = K is one search
-// over the lattices of frames f - K + 1 .. f (the same paths), its paths
-// grow frame by frame towards the exhaustive search's, and frames past K
-// keep K lattices.
-TEST(TurnedLattice, StaticScenerySumsKLatticesAndApproachesTheExhaustiveSearch) {
+// over the lattices of frames 0 .. f (a path found holds, so it is kept):
+// the same paths; they grow frame by frame towards the exhaustive
+// search's.
+TEST(TurnedLattice, StaticSceneryKeepsEveryLatticesPathsAndApproachesTheExhaustiveSearch) {
   tracer::TraceScene scene(street_geometry());
   const std::uint32_t K = 6;
   const auto cfg = sparse_config();
@@ -189,14 +189,15 @@ TEST(TurnedLattice, StaticScenerySumsKLatticesAndApproachesTheExhaustiveSearch) 
   std::vector<tracer::Node> nodes;
   for (const auto& r : street_rsus()) nodes.push_back(node(std::to_string(r.node), r.position));
   const auto pairs = all_pairs(static_cast<std::uint32_t>(nodes.size()));
-  // The union by hand for the last frame: the proposals of the K - 1 frames
+  // The union by hand for the last frame: the proposals of every frame
   // before it, carried into its own lattice's search.
   const std::uint64_t last = K + 1;
   std::vector<std::set<std::vector<FaceRef>>> seen(pairs.size());
-  for (std::uint64_t f = last + 1 - K; f < last; ++f) {
+  for (std::uint64_t f = 0; f < last; ++f) {
     const auto s = trace_turned(scene, nodes, pairs, cfg, generators::frame_lattice_turn(0, f),
                                 std::vector<FaceSequences>(pairs.size()));
-    for (std::size_t p = 0; p < pairs.size(); ++p) seen[p].insert(s.pairs[p].proposed.begin(), s.pairs[p].proposed.end());
+    for (std::size_t p = 0; p < pairs.size(); ++p)
+      seen[p].insert(s.pairs[p].proposed.begin(), s.pairs[p].proposed.end());
   }
   std::vector<FaceSequences> carried;
   for (const auto& s : seen) carried.emplace_back(s.begin(), s.end());
@@ -218,7 +219,8 @@ TEST(TurnedLattice, StaticScenerySumsKLatticesAndApproachesTheExhaustiveSearch) 
   exhaustive_cfg.candidates = tracer::CandidateSearch::exhaustive;
   std::size_t exhaustive = 0;
   for (const auto& r : tracer::trace_pairs(scene, nodes, pairs, exhaustive_cfg, {}).pairs) exhaustive += r.paths.size();
-  for (std::uint32_t f = 1; f < K; ++f) EXPECT_GE(total_paths(frames[f]), total_paths(frames[f - 1])) << "frame " << f;
+  for (std::uint32_t f = 1; f < K + 2; ++f)
+    EXPECT_GE(total_paths(frames[f]), total_paths(frames[f - 1])) << "frame " << f;
   EXPECT_GT(total_paths(frames[K - 1]), total_paths(frames[0])) << "K lattices found nothing one missed";
   EXPECT_LE(total_paths(frames[K + 1]), exhaustive);
   EXPECT_LT(exhaustive - total_paths(frames[K - 1]), exhaustive - total_paths(frames[0]));

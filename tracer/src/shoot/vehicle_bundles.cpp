@@ -21,10 +21,26 @@ double cap_one_minus_cos(const Vec3& from, const TraceScene::Sphere& s) {
   return sin_half * sin_half / (1 + std::sqrt(1 - sin_half * sin_half));
 }
 
+// The bundles' share of a turned lattice (TracerConfig::lattice_turn): the
+// cap spiral turned about its axis and its rings shifted within their
+// equal-area strata, so that each turn aims other rays at a vehicle.
+struct CapTurn {
+  double angle = 0, offset = 0.5;  // unturned: the strata's middles
+  explicit CapTurn(std::uint64_t turn) {
+    if (turn == 0) return;
+    // One turned direction: uniform on the sphere, so its azimuth and
+    // (Archimedes) its z are uniform.
+    const auto d0 = fibonacci_sphere(1, turn)[0];
+    angle = std::atan2(d0[1], d0[0]);
+    offset = 0.5 * (1 - d0[2]) * 0.999 + 0.0005;
+  }
+};
+
 // Directions from `from` spread evenly in solid angle over the cap the
 // sphere subtends (a Fibonacci spiral), `n` of them; none from inside it.
 // Returns the cap's 1 - cos (0 from inside).
-double cap_directions(const Vec3& from, const TraceScene::Sphere& s, int n, std::vector<Vec3>& out) {
+double cap_directions(const Vec3& from, const TraceScene::Sphere& s, int n, const CapTurn& turn,
+                      std::vector<Vec3>& out) {
   const Vec3 c = s.centre - from;
   const double d = norm(c);
   if (!(d > s.radius)) return 0;
@@ -32,8 +48,9 @@ double cap_directions(const Vec3& from, const TraceScene::Sphere& s, int n, std:
   const double one_minus_cos = cap_one_minus_cos(from, s);
   const double golden = kPi * (3 - std::sqrt(5.0));
   for (int k = 0; k < n; ++k) {
-    const double z = 1 - one_minus_cos * (k + 0.5) / n, r = std::sqrt(std::fmax(0.0, 1 - z * z));
-    out.push_back(std::cos(golden * k) * r * u + std::sin(golden * k) * r * v + z * w);
+    const double z = 1 - one_minus_cos * (k + turn.offset) / n, r = std::sqrt(std::fmax(0.0, 1 - z * z));
+    const double phi = golden * k + turn.angle;
+    out.push_back(std::cos(phi) * r * u + std::sin(phi) * r * v + z * w);
   }
   return one_minus_cos;
 }
@@ -51,7 +68,8 @@ double lattice_rays_on_cap(double one_minus_cos, int rays) { return one_minus_co
 // within v's; each cast from s at its crossing point. With `sparse_only`,
 // none when the lattice already gives v's cap from the image n rays.
 void bundle_through_face(const ImageFaces& faces, const Vec3& s, std::uint32_t f, std::uint32_t v, int n, int rays,
-                         bool sparse_only, std::vector<Vec3>& dirs, std::vector<BundleTarget>& targets) {
+                         bool sparse_only, const CapTurn& turn, std::vector<Vec3>& dirs,
+                         std::vector<BundleTarget>& targets) {
   const Plane& pl = faces.planes[f];
   const Vec3 img = s - 2 * (dot(pl.normal, s) - pl.offset) * pl.normal;
   const auto& fs = faces.spheres[f];
@@ -62,7 +80,7 @@ void bundle_through_face(const ImageFaces& faces, const Vec3& s, std::uint32_t f
   const double cap_f = cap_one_minus_cos(img, face_sphere);
   const bool aim_at_face = cap_f < cap_v;
   std::vector<Vec3> aimed;
-  const double cap = cap_directions(img, aim_at_face ? face_sphere : vs, n, aimed);
+  const double cap = cap_directions(img, aim_at_face ? face_sphere : vs, n, turn, aimed);
   const BundleTarget target{faces.refs[f], true, bundle_spacing(cap, n)};
   for (const Vec3& e : aimed) {
     const double den = dot(pl.normal, e);
@@ -85,12 +103,13 @@ void bundle_through_face(const ImageFaces& faces, const Vec3& s, std::uint32_t f
 void first_bundles(const SnapshotPlan& plan, const ImageFaces& faces, std::uint32_t src,
                    std::vector<BeamVehicle> combos, std::vector<Vec3>& dirs, std::vector<BundleTarget>& targets) {
   const int n = plan.cfg.vehicle_bundle_rays, rays = plan.cfg.rays_per_source;
+  const CapTurn turn(plan.cfg.lattice_turn);
   const Vec3 s = plan.nodes[src].position;
   const auto own = static_cast<std::uint32_t>(plan.nodes[src].vehicle);
   for (std::uint32_t v = 0; v < faces.vehicle_spheres.size(); ++v) {
     if (v == own) continue;
     const std::size_t at = dirs.size();
-    const double cap = cap_directions(s, faces.vehicle_spheres[v], n, dirs);
+    const double cap = cap_directions(s, faces.vehicle_spheres[v], n, turn, dirs);
     if (lattice_rays_on_cap(cap, rays) >= n) dirs.resize(at);
     targets.resize(dirs.size(), BundleTarget{{v + 1, 0}, false, bundle_spacing(cap, n)});
   }
@@ -98,7 +117,7 @@ void first_bundles(const SnapshotPlan& plan, const ImageFaces& faces, std::uint3
   std::sort(combos.begin(), combos.end());
   combos.erase(std::unique(combos.begin(), combos.end()), combos.end());
   for (const BeamVehicle& c : combos)
-    if (c.vehicle != own) bundle_through_face(faces, s, c.face, c.vehicle, n, rays, true, dirs, targets);
+    if (c.vehicle != own) bundle_through_face(faces, s, c.face, c.vehicle, n, rays, true, turn, dirs, targets);
 }
 
 // One round of bundles: each source's rays in tasks of kShootChunk, their
@@ -158,9 +177,10 @@ void shoot_vehicle_bundles(const SnapshotPlan& plan, const ImageFaces& faces, Sh
     m.erase(std::unique(m.begin(), m.end()), m.end());
     dirs[src].clear();
     targets[src].clear();
+    const CapTurn turn(plan.cfg.lattice_turn);
     for (const BeamVehicle& c : m)
       bundle_through_face(faces, plan.nodes[src].position, c.face, c.vehicle, plan.cfg.vehicle_bundle_rays,
-                          plan.cfg.rays_per_source, false, dirs[src], targets[src]);
+                          plan.cfg.rays_per_source, false, turn, dirs[src], targets[src]);
   });
   shoot_bundles(plan, faces, dirs, targets, pass, nullptr);
 }
