@@ -60,6 +60,19 @@ bool unfold(const TraceScene& scene, const Node& from, const Node& to, const std
   return true;
 }
 
+// Twice the reach the ray test grants a segment ending on face m (the end
+// point's slack, the face's flatness, the grazing angle: exact_path), plus
+// a millimetre: a point farther off the face cannot be reached.
+double off_face_tolerance(const TraceScene& scene, const FaceRef& face, const std::array<Vec3, kMaxDepth + 2>& points,
+                          const Plane& plane, std::size_t m) {
+  const Vec3 a = points[m], b = points[m + 1];
+  const double len = norm(b - a);
+  if (!(len > 0)) return 0;
+  const double end_tol = std::max(scene.slack(b, 0), 2 * scene.flatness(face) + 1e-6 * len);
+  const double sine = std::fabs(dot((1.0 / len) * (b - a), plane.normal));
+  return 2 * end_tol / std::max(sine, kGrazingSineFloor) + 1e-3;
+}
+
 // A reflection on a vehicle face by physical optics: the face's Kirchhoff
 // integral over an infinite mirror's, with the wave at the face taken as the
 // image source's (the unfolded length before it) seen from the receiver's
@@ -144,6 +157,12 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
   std::array<Plane, kMaxDepth> planes;
   std::array<Vec3, kMaxDepth + 2> points;
   if (!unfold(scene, from, to, faces, planes, points)) return std::nullopt;
+  // A reflection point off its face (beyond every tolerance the ray test
+  // below grants) makes no path: no ray is cast for it, and it is no near
+  // miss, whatever a leg crosses.
+  for (std::size_t m = 0; m < k; ++m)
+    if (!scene.face_contains(faces[m], points[m + 1], off_face_tolerance(scene, faces[m], points, planes[m], m)))
+      return std::nullopt;
 
   // Trace every segment: it must end on its face, and what it crosses on the
   // way are slabs (or opaque blockers).
