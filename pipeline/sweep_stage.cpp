@@ -286,7 +286,8 @@ class BlockStore {
                      {"traced_links", s.traced_links - before_.traced_links},
                      {"searched_links", s.searched_links - before_.searched_links},
                      {"recall_broken", s.recall_broken - before_.recall_broken},
-                     {"carried_sequences", s.carried - before_.carried},
+                     {"carried_sequences", s.carried_solved - before_.carried_solved},
+                     {"carried_paths", s.carried - before_.carried},
                      {"vehicle_updates", s.vehicle_updates - before_.vehicle_updates},
                      {"updates_deferred", s.updates_deferred - before_.updates_deferred},
                      {"rays", s.rays - before_.rays},
@@ -426,7 +427,8 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
                       const BlockStore& store, const NodeTable& nodes, const generators::Sweep& sweep) {
   StagedFile staged{fs::path(args.out)};
   json totals = {{"frames", 0},          {"links", 0},           {"traced_links", 0},
-                 {"searched_links", 0},  {"recall_broken", 0},   {"carried_sequences", 0}, {"vehicle_updates", 0},
+                 {"searched_links", 0},  {"recall_broken", 0},   {"carried_sequences", 0},
+                 {"carried_paths", 0},   {"vehicle_updates", 0},
                  {"updates_deferred", 0}, {"rays", 0},           {"trace_seconds", 0.0},
                  {"resolve_seconds", 0.0}, {"record_seconds", 0.0}, {"block_seconds", 0.0}};
   const auto t0 = std::chrono::steady_clock::now();
@@ -483,12 +485,15 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
                totals["record_seconds"].get<double>(), totals["block_seconds"].get<double>(),
                totals["write_seconds"].get<double>(), args.out, summary["store"].get<std::string>(),
                summary["bytes_per_link"].get<double>());
-  if (options.lattice_frames > 1)
-    spdlog::info("turned lattices over {} frames: {} paths and near misses that only sequences carried from "
-                 "earlier frames gave ({:.2f} a searched pair)",
-                 options.lattice_frames, totals["carried_sequences"].get<std::uint64_t>(),
-                 static_cast<double>(totals["carried_sequences"].get<std::uint64_t>()) /
-                     std::max<std::uint64_t>(1, totals["searched_links"].get<std::uint64_t>()));
+  if (options.lattice_frames > 1) {
+    const auto searched = std::max<std::uint64_t>(1, totals["searched_links"].get<std::uint64_t>());
+    const auto solved = totals["carried_sequences"].get<std::uint64_t>();
+    const auto kept = totals["carried_paths"].get<std::uint64_t>();
+    spdlog::info("turned lattices over {} frames: {} sequences carried into searches ({:.1f} a searched pair), {} "
+                 "paths and near misses of them that the frame's own rays had not proposed ({:.2f} a searched pair)",
+                 options.lattice_frames, solved, static_cast<double>(solved) / searched, kept,
+                 static_cast<double>(kept) / searched);
+  }
   return summary;
 }
 

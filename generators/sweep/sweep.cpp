@@ -351,8 +351,8 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
   return out;
 }
 
-// Per pair of `search`, the sequences its searches proposed in the last
-// lattice_frames - 1 frames whose vehicles are all still here, as this
+// Per pair of `search`, its kept sequences (keep_found) stamped within the
+// last lattice_frames frames whose vehicles are all still here, as this
 // frame's FaceRefs (older ones forgotten).
 std::vector<tracer::FaceSequences> Sweep::carried_sequences(std::uint64_t frame, const Antennas& ant,
                                                             const std::vector<NodePair>& search) {
@@ -377,6 +377,7 @@ std::vector<tracer::FaceSequences> Sweep::carried_sequences(std::uint64_t frame,
       }
       if (now.size() == faces.size()) carried[p].push_back(std::move(now));
     }
+    stats_.carried_solved += carried[p].size();
   }
   return carried;
 }

@@ -124,7 +124,8 @@ struct SweepStats {
   std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
   std::uint64_t searched_links = 0;  // of those, searched from scratch (the rest re-solved coherently)
   std::uint64_t recall_broken = 0;   // re-solves whose recall no longer held (then searched)
-  std::uint64_t carried = 0;         // turned lattices: paths (and near misses) that only carried sequences gave
+  std::uint64_t carried_solved = 0;  // turned lattices: carried sequences solved in searches
+  std::uint64_t carried = 0;         // of them, paths (and near misses) that this frame's rays had not proposed
   std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
   std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
   std::uint64_t paths = 0;
