@@ -37,10 +37,8 @@ import shutil
 import h5py
 import numpy as np
 
-from coherence_bench import DEMO, RING, RING_SUMO, sweep
-from spike_bench import BH, BH_DATA, spikes
-
-CASES = {"demo": (DEMO, 60.0, None), "ring": (RING, 70.0, RING_SUMO), "badhersfeld": (BH, 180.0, BH_DATA)}
+from coherence_bench import sweep
+from spike_bench import selected_cases, spikes
 REFERENCE = ["tracer.rays_per_source=49152", "tracer.vehicle_bundle_rays=128", "sweep.lattice_frames=4"]
 OTHER_TURN = "tracer.lattice_turn=12345"
 
@@ -115,11 +113,7 @@ def main():
         return
     rs = os.path.join(args.build, "raysweep")
     rows = []
-    for case in args.cases.split(","):
-        city, begin, data = CASES[case]
-        if data and not os.path.isdir(data):
-            print(f"{case}: skipped (../shared/data absent)")
-            continue
+    for case, city, begin in selected_cases(args.cases):
         out = os.path.join(args.out, case)
         base = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + args.frames / 10 - 0.05}", "sweep.coherence=false"]
         if args.no_diffuse:

@@ -36,6 +36,16 @@ BH_DATA = os.path.join(os.path.dirname(ROOT), "shared", "data", "dlr-sumo-scenar
 CASES = {"demo": (DEMO, 60.0, None), "ring": (RING, 70.0, RING_SUMO), "badhersfeld": (BH, 180.0, BH_DATA)}
 
 
+def selected_cases(names):
+    """(case, city file, first second) of each named case whose data is here."""
+    for case in names.split(","):
+        city, begin, data = CASES[case]
+        if data and not os.path.isdir(data):
+            print(f"{case}: skipped (../shared/data absent)")
+            continue
+        yield case, city, begin
+
+
 def spikes(path, jump_db=6.0, agree_db=2.0):
     """(spikes, upward spikes, link-frames with both neighbours) of a dataset."""
     floor = floor_of(path)
@@ -72,11 +82,7 @@ def main():
     rs = os.path.join(args.build, "raysweep")
     frames = dict((k, int(v)) for k, v in (kv.split("=") for kv in args.frames.split(",")))
     rows = []
-    for case in args.cases.split(","):
-        city, begin, data = CASES[case]
-        if data and not os.path.isdir(data):
-            print(f"{case}: skipped (../shared/data absent)")
-            continue
+    for case, city, begin in selected_cases(args.cases):
         n = frames.get(case, 50)
         out = os.path.join(args.out, case)
         for mode in args.modes.split(","):

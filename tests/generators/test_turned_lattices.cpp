@@ -16,6 +16,7 @@
 #include <set>
 
 #include "generators/sweep/sweep.hpp"
+#include "sweep_fixtures.hpp"
 #include "tracer_fixtures.hpp"
 #include "vehicle_fixtures.hpp"
 
@@ -28,17 +29,7 @@ using tracer::FaceSequences;
 
 namespace {
 
-SweepVehicle vehicle(std::uint32_t node, std::uint32_t model, double x, double y, double heading_deg,
-                     double speed) {
-  SweepVehicle v;
-  v.node = node;
-  v.model = model;
-  v.position = {x, y, 0};
-  v.heading_deg = heading_deg;
-  const double yaw = (90 - heading_deg) * M_PI / 180;
-  v.velocity = {speed * std::cos(yaw), speed * std::sin(yaw), 0};
-  return v;
-}
+constexpr auto vehicle = sweep_vehicle;
 
 // A street of buildings with gaps and a kiosk: order-3 static chains the
 // image search leaves to the rays.
