@@ -9,9 +9,11 @@
 #include <array>
 #include <cstdio>
 #include <cmath>
+#include <iterator>
 #include <memory>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "search/beam_search.hpp"
@@ -574,6 +576,68 @@ TEST(ImageSearch, StaticThirdOrderThroughTheGroundMatchesExhaustive) {
   EXPECT_GT(at[1], 50u);
   EXPECT_GT(at[2], 50u);
   EXPECT_GT(at[3], 50u);
+}
+
+// The beam pairs' third faces under the slab bounds: on streets of random
+// blocks with antennas in every street and every pair of static faces as a
+// lit pair, the search with the bounds proposes a subset of the search
+// without, it does skip some (the far blocks' faces), and no sequence it
+// skips is a path: compute_path (every leg traced, every slab counted)
+// finds none of them with two slabs allowed.
+TEST(ImageSearch, BeamPairsSkipOnlySequencesOverTheSlabCap) {
+  std::mt19937 rng(29);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  std::size_t kept = 0, skipped = 0;
+  for (int town = 0; town < 2; ++town) {
+    meshkit::Scene sc;
+    add_ground(sc, 200);
+    for (int row = 0; row < 4; ++row)
+      for (int b = 0; b < 3; ++b) {
+        const double x0 = -90 + 60 * b + u(0, 8), y0 = -90 + 45 * row + u(0, 6);
+        add_box_object(sc, {x0, y0, 0}, {x0 + u(25, 40), y0 + u(15, 28), u(6, 30)}, "concrete",
+                       "b" + std::to_string(row) + std::to_string(b));
+      }
+    std::vector<tracer::Node> nodes;
+    for (int a = 0; a < 5; ++a)
+      nodes.push_back(node("n" + std::to_string(a), {u(-80, 80), -72 + 45 * (a % 3) + u(0, 4), 1.5}));
+    tracer::TraceScene scene(sc);
+    const auto faces = tracer::image_faces(scene);
+    auto cfg = specular_config(3, tracer::CandidateSearch::image);
+    cfg.refraction = true;
+    const auto slabs = tracer::slab_bounds(scene, faces, nodes, std::vector<char>(nodes.size(), 1),
+                                           cfg.max_transmissions);
+    std::vector<tracer::BeamPair> pairs;
+    for (std::uint32_t f1 = 0; f1 < faces.static_count; ++f1)
+      for (std::uint32_t f2 = 0; f2 < faces.static_count; ++f2)
+        if (f1 != f2) pairs.push_back({f1, f2});
+    const tracer::Electromagnetics em(scene.material_names(), {}, {});
+    for (std::uint32_t src = 0; src < nodes.size(); ++src) {
+      std::vector<std::uint32_t> receivers;
+      for (std::uint32_t r = 0; r < nodes.size(); ++r)
+        if (r != src) receivers.push_back(r);
+      std::vector<tracer::ImageCandidate> all, bounded;
+      tracer::beam_pair_candidates(scene, faces, nodes, src, pairs, receivers, all);
+      tracer::beam_pair_candidates(scene, faces, nodes, src, pairs, receivers, bounded, nullptr, false, &slabs);
+      auto less = [](const tracer::ImageCandidate& a, const tracer::ImageCandidate& b) {
+        return std::tie(a.rx, a.faces) < std::tie(b.rx, b.faces);
+      };
+      std::sort(all.begin(), all.end(), less);
+      std::sort(bounded.begin(), bounded.end(), less);
+      ASSERT_TRUE(std::includes(all.begin(), all.end(), bounded.begin(), bounded.end(), less)) << "source " << src;
+      std::vector<tracer::ImageCandidate> dropped;
+      std::set_difference(all.begin(), all.end(), bounded.begin(), bounded.end(), std::back_inserter(dropped), less);
+      for (const auto& c : dropped) {
+        bool over_cap = false;
+        EXPECT_FALSE(tracer::compute_path(scene, em, cfg, nodes[src], nodes[c.rx], c.faces, &over_cap))
+            << "town " << town << " source " << src << " receiver " << c.rx;
+      }
+      kept += bounded.size();
+      skipped += dropped.size();
+    }
+  }
+  std::printf("beam-pair sequences: %zu kept, %zu skipped by the slab bounds\n", kept, skipped);
+  EXPECT_GT(kept, 1000u);
+  EXPECT_GT(skipped, 1000u);
 }
 
 // Three reflections among static faces (walls, the boxes, the ground)

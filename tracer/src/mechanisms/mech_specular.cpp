@@ -88,6 +88,7 @@ void beam_search(const SnapshotPlan& plan, ShootPass& pass, std::vector<Sequence
   const auto& cfg = plan.cfg;
   const ImageFaces& faces = plan.faces();
   const bool triple_search = !pass.beam_pairs.empty();
+  const SlabBounds* slabs = triple_search && plan.image_search ? &plan.slab_bounds() : nullptr;
   std::vector<std::vector<ImageCandidate>> found(plan.n);
   std::vector<ImageSearchStats> st(plan.n);
   tbb::parallel_for(std::uint32_t{0}, plan.n, [&](std::uint32_t i) {
@@ -104,7 +105,7 @@ void beam_search(const SnapshotPlan& plan, ShootPass& pass, std::vector<Sequence
     std::sort(bp.begin(), bp.end());
     bp.erase(std::unique(bp.begin(), bp.end()), bp.end());
     beam_pair_candidates(plan.scene, faces, plan.nodes, i, bp, plan.partners[i], found[i], &st[i],
-                         cfg.ground_order3);
+                         cfg.ground_order3, slabs);
   });
   add_search_stats(st, stats);
   file_by_pair(plan, found, candidates);

@@ -4,6 +4,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "search/beam_geometry.hpp"
@@ -41,15 +42,20 @@ namespace {
 
 // beam_pair_candidates' search, one lit pair (f1, f2) at a time: the beam
 // after f2, the third faces in it, and each third face's receivers.
-class BeamPairSearch : public SourceSearch {
+class BeamPairSearch : public CappedSearch {
  public:
   BeamPairSearch(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes, std::uint32_t src,
-                 const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, bool skip_ground)
-      : SourceSearch(scene, faces, nodes, src, receivers, out), skip_ground(skip_ground) {}
+                 const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, const SlabBounds* slabs,
+                 bool skip_ground)
+      : CappedSearch(scene, faces, nodes, src, receivers, out, slabs), skip_ground(skip_ground) {
+    if (slabs) last_leg_bounds();
+  }
 
   void pair(const BeamPair& bp) {
     f1 = bp.f1;
     f2 = bp.f2;
+    if (over_cap(f1)) return;
+    budget = slabs ? slabs->cap - slabs->at(src, f1) : 0;
     if (!unfold()) return;
     ++local.image_sources;
     beam_after_f2();
@@ -76,6 +82,14 @@ class BeamPairSearch : public SourceSearch {
   std::vector<std::uint32_t> tree_stack, third_faces, kept_vehicles;
   BeamSphereTest sphere_test;
   std::vector<std::int64_t> keep;
+  // The fewest slabs a last leg from a static face to any of the receivers
+  // crosses (the slab bounds' minimum over the receivers), per face and per
+  // node of the static tree (the minimum below it); and the slabs the pair's
+  // first leg leaves to the last: a third face over that budget ends no
+  // path, and a tree node over it holds none that does. In a town most
+  // faces a wide beam reaches lie behind buildings from every receiver.
+  std::vector<std::uint8_t> face_last_leg, node_last_leg;
+  int budget = 0;
   // The pair being searched: the images of the source in f1, then f2
   // (img[0] = the source), and each one's signed distance from the next
   // face's plane; the beam after f2 (pyramid, spread_per_m, cone when
@@ -90,6 +104,29 @@ class BeamPairSearch : public SourceSearch {
   int side = 1;
 
   bool is_ground(std::uint32_t f) const { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); }
+
+  void last_leg_bounds() {
+    face_last_leg.assign(faces.static_count, std::numeric_limits<std::uint8_t>::max());
+    for (const std::uint32_t r : receivers)
+      for (std::uint32_t f = 0; f < faces.static_count; ++f)
+        face_last_leg[f] = std::min(face_last_leg[f], static_cast<std::uint8_t>(slabs->at(r, f)));
+    // Children follow their parent in the depth-first layout: bottom-up is
+    // from the back.
+    const auto& tree = faces.static_tree;
+    node_last_leg.assign(tree.size(), 0);
+    for (std::size_t at = tree.size(); at-- > 0;) {
+      const auto& node = tree[at];
+      std::uint8_t m = std::numeric_limits<std::uint8_t>::max();
+      if (node.count > 0) {
+        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k)
+          m = std::min(m, face_last_leg[faces.static_order[k]]);
+      } else {
+        m = std::min(node_last_leg[at + 1], node_last_leg[node.right]);
+      }
+      node_last_leg[at] = m;
+    }
+  }
+  bool over_budget(std::uint32_t static_face) const { return slabs && face_last_leg[static_face] > budget; }
 
   // The images in f1 and f2; false when one lies on its face's plane.
   bool unfold() {
@@ -149,9 +186,11 @@ class BeamPairSearch : public SourceSearch {
   void static_third_faces(bool skip) {
     walk_static_tree(
         faces, tree_stack,
-        [&](const TraceScene::Sphere& sp, double tol) { return behind(sp) || outside(sp, tol); },
+        [&](const TraceScene::Sphere& sp, double tol, std::uint32_t at) {
+          return (slabs && node_last_leg[at] > budget) || behind(sp) || outside(sp, tol);
+        },
         [&](std::uint32_t f3) {
-          if (f3 == f2 || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
+          if (f3 == f2 || over_budget(f3) || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
               outside(faces.spheres[f3], faces.tol[f3]))
             return;
           if (skip && is_ground(f3)) return;
@@ -207,8 +246,9 @@ class BeamPairSearch : public SourceSearch {
     if (!mark_crossings(rx, 0, p3, p3.offset - dot(p3.normal, xs), d3, i3 - xs, s3, s3.centre - xs, faces.tol[f3],
                         scratch))
       return;
+    const bool f3_static = f3 < faces.static_count;
     for (std::size_t r = 0; r < rx.size(); ++r) {
-      if (!scratch.hit[r]) continue;
+      if (!scratch.hit[r] || (f3_static && over_cap(f1, r, f3))) continue;
       const Vec3 xr = nodes[receivers[r]].position;
       const Vec3 q3 = crossing(i3, -d3, xr, dot(p3.normal, xr) - p3.offset);
       if (on_face(f3, q3) && back_through_f2_f1(q3))
@@ -222,9 +262,9 @@ class BeamPairSearch : public SourceSearch {
 void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                           std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
                           const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
-                          ImageSearchStats* stats, bool skip_ground) {
+                          ImageSearchStats* stats, bool skip_ground, const SlabBounds* slabs) {
   if (beam_pairs.empty() || receivers.empty()) return;
-  BeamPairSearch search(scene, faces, nodes, src, receivers, out, skip_ground);
+  BeamPairSearch search(scene, faces, nodes, src, receivers, out, slabs, skip_ground);
   for (const BeamPair& bp : beam_pairs) search.pair(bp);
   search.add_stats(stats);
 }

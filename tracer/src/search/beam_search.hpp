@@ -11,6 +11,7 @@
 
 #include "search/face_index.hpp"
 #include "search/image_search.hpp"
+#include "search/visibility.hpp"
 
 namespace raysweep::tracer {
 
@@ -80,10 +81,14 @@ void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Ve
 // f2; walked down the static sphere tree) and, after a static f2, every
 // vehicle face in it, each decided by its image, a vectorised pass over the
 // receivers and on-face tests. With `skip_ground`, not the static triples
-// with a ground face (image_candidates' ground_order3 has them).
+// with a ground face (image_candidates' ground_order3 has them). With
+// `slabs` (every receiver's bounds), not the sequences whose first leg and
+// last leg to a static third face cross more slabs than the cap: no path
+// (SlabBounds).
 void beam_pair_candidates(const TraceScene& scene, const ImageFaces& faces, const std::vector<Node>& nodes,
                           std::uint32_t src, const std::vector<BeamPair>& beam_pairs,
                           const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out,
-                          ImageSearchStats* stats = nullptr, bool skip_ground = false);
+                          ImageSearchStats* stats = nullptr, bool skip_ground = false,
+                          const SlabBounds* slabs = nullptr);
 
 }  // namespace raysweep::tracer

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <type_traits>
 #include <vector>
 
 #include "tracer/solver.hpp"
@@ -83,6 +84,8 @@ void build_sphere_tree(const std::vector<TraceScene::Sphere>& spheres, const std
 // Depth-first down a sphere tree (`order` its items): prune(sphere, tol)
 // true skips a node and everything below it (its sphere and tol bound
 // theirs); leaf(i) for each item of the leaves reached, in the tree's order.
+// A prune that also takes the node's index (sphere, tol, index) can look up
+// what the caller keeps per node.
 template <class Prune, class Leaf>
 void walk_tree(const std::vector<ImageFaces::SphereNode>& tree, const std::vector<std::uint32_t>& order,
                std::vector<std::uint32_t>& stack, Prune&& prune, Leaf&& leaf) {
@@ -92,7 +95,11 @@ void walk_tree(const std::vector<ImageFaces::SphereNode>& tree, const std::vecto
     const std::uint32_t at = stack.back();
     stack.pop_back();
     const auto& node = tree[at];
-    if (prune(node.sphere, node.tol)) continue;
+    if constexpr (std::is_invocable_v<Prune&, const TraceScene::Sphere&, double, std::uint32_t>) {
+      if (prune(node.sphere, node.tol, at)) continue;
+    } else if (prune(node.sphere, node.tol)) {
+      continue;
+    }
     if (node.count == 0) {
       stack.push_back(node.right);
       stack.push_back(at + 1);
