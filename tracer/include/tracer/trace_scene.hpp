@@ -134,10 +134,6 @@ class TraceScene {
   // a path; they do not obstruct (tracer/src/fresnel_zone.hpp) and pair with every
   // vehicle in the image search.
   bool is_ground(std::uint32_t static_face) const;
-  // Whether static face g has a vertex strictly on the `side` (> 0: front,
-  // < 0: back) of static face f's plane (computed once with the scene): the
-  // only faces a path reflected by f can go on to. False for g == f.
-  bool static_face_reaches(std::uint32_t f, int side, std::uint32_t g) const;
   // Bounding sphere of vehicle v's model, in the world.
   Sphere vehicle_sphere(std::size_t v) const;
   // Faces of vehicle v whose normal (either sign) may lie within `delta`

@@ -1,6 +1,6 @@
 // TraceScene's state: the Embree device and top-level scene, the static
 // shape and the vehicle models, the current frame's instances, and what
-// is derived from the static scene once (edges, ground, face sides).
+// is derived from the static scene once (edges, ground).
 #pragma once
 
 #include <map>
@@ -27,10 +27,6 @@ struct TraceScene::Impl {
   std::vector<double> cos_yaw, sin_yaw;
   std::vector<Edge> edges;
   std::vector<char> ground;  // per static face: is_ground
-  // Bit g of row 2 f + (side < 0): static face g reaches that side of f
-  // (a bitset: a list per face and side grows as faces squared in ints).
-  std::vector<std::uint64_t> reaching;
-  std::size_t reaching_words = 0;
   std::shared_ptr<const PrecomputeStore> store;
   mutable std::mutex memo_mutex;
   mutable std::map<std::string, std::shared_ptr<const void>> memo;

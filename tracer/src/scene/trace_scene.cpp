@@ -46,38 +46,6 @@ std::vector<char> ground_faces(const TraceScene::Shape& w) {
   return out;
 }
 
-// Bit g of row 2 f + (side < 0): static face g has a vertex strictly on
-// that side of face f's plane (Impl::reaching); `words` per row.
-std::vector<std::uint64_t> face_sides(const TraceScene::Shape& w, std::size_t& words) {
-  const std::size_t nf = w.face_plane.size();
-  std::vector<std::vector<std::uint32_t>> verts(nf);
-  for (std::size_t t = 0; t < w.triangles.size(); ++t)
-    for (auto vi : w.triangles[t]) verts[w.tri_face[t]].push_back(vi);
-  for (auto& v : verts) {
-    std::sort(v.begin(), v.end());
-    v.erase(std::unique(v.begin(), v.end()), v.end());
-  }
-  words = (nf + 63) / 64;
-  std::vector<std::uint64_t> reaching(2 * nf * words, 0);
-  for (std::uint32_t f = 0; f < nf; ++f) {
-    const Plane& p = w.face_plane[f];
-    const double eps = 1e-9 + w.face_flatness[f];
-    for (std::uint32_t g = 0; g < nf; ++g) {
-      if (g == f) continue;
-      bool front = false, back = false;
-      for (auto vi : verts[g]) {
-        const double h = dot(p.normal, w.vertices[vi]) - p.offset;
-        front = front || h > eps;
-        back = back || h < -eps;
-      }
-      const std::uint64_t bit = std::uint64_t{1} << (g % 64);
-      if (front) reaching[(2 * std::size_t{f}) * words + g / 64] |= bit;
-      if (back) reaching[(2 * std::size_t{f} + 1) * words + g / 64] |= bit;
-    }
-  }
-  return reaching;
-}
-
 }  // namespace
 
 TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_unique<Impl>()) {
@@ -94,7 +62,6 @@ TraceScene::TraceScene(const meshkit::Scene& static_scene) : impl_(std::make_uni
   for (auto& o : d.world.face_object) o = std::min<std::uint32_t>(o, d.static_objects.size() - 1);
   d.edges = extract_edges(d.world, d.static_objects);
   d.ground = ground_faces(d.world);
-  d.reaching = face_sides(d.world, d.reaching_words);
 
   d.top = rtcNewScene(d.device);
   rtcSetSceneFlags(d.top, static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_DYNAMIC | RTC_SCENE_FLAG_ROBUST |
@@ -350,12 +317,6 @@ TraceScene::Sphere TraceScene::face_sphere(const FaceRef& f) const {
   const double c = d.cos_yaw[v], sn = d.sin_yaw[v];
   const Vec3& m = b.centre;
   return Sphere{Vec3{c * m[0] - sn * m[1], sn * m[0] + c * m[1], m[2]} + vehicles_[v].position, b.radius};
-}
-
-bool TraceScene::static_face_reaches(std::uint32_t f, int side, std::uint32_t g) const {
-  const auto& d = *impl_;
-  const std::size_t row = 2 * std::size_t{f} + (side > 0 ? 0 : 1);
-  return (d.reaching[row * d.reaching_words + g / 64] >> (g % 64)) & 1u;
 }
 
 void TraceScene::face_triangles(const FaceRef& f, std::vector<std::array<Vec3, 3>>& out) const {

@@ -32,7 +32,7 @@ void small_face_pairs(const TraceScene& scene, const ImageFaces& faces, const Ve
       return (ds > 0 ? h : -h) + sp.radius <= 0 || outside_pyramid(pyramid, i1, sp, tol, spread_per_m);
     };
     walk_static_tree(faces, stack, outside, [&](std::uint32_t f2) {
-      if (f2 != f1 && scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2) && !outside(faces.spheres[f2], faces.tol[f2]))
+      if (f2 != f1 && face_reaches(faces, f1, ds > 0 ? 1 : -1, f2) && !outside(faces.spheres[f2], faces.tol[f2]))
         pairs.push_back({f1, f2});
     });
   }
@@ -190,7 +190,7 @@ class BeamPairSearch : public CappedSearch {
           return (slabs && node_last_leg[at] > budget) || behind(sp) || outside(sp, tol);
         },
         [&](std::uint32_t f3) {
-          if (f3 == f2 || over_budget(f3) || (f2_static && !scene.static_face_reaches(f2, side, f3)) ||
+          if (f3 == f2 || over_budget(f3) || (f2_static && !face_reaches(faces, f2, side, f3)) ||
               outside(faces.spheres[f3], faces.tol[f3]))
             return;
           if (skip && is_ground(f3)) return;

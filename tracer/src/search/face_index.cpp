@@ -135,6 +135,11 @@ ImageFaces image_faces(const TraceScene& scene) {
     tris.clear();
     scene.face_triangles(t.refs[f], tris);
     convex_outline(tris, t.planes[f], t.outline);
+    t.vertex_begin.push_back(static_cast<std::uint32_t>(t.vertices.size()));
+    for (const auto& tr : tris) t.vertices.insert(t.vertices.end(), tr.begin(), tr.end());
+    std::sort(t.vertices.begin() + t.vertex_begin.back(), t.vertices.end());
+    t.vertices.erase(std::unique(t.vertices.begin() + t.vertex_begin.back(), t.vertices.end()), t.vertices.end());
+    t.off_plane.push_back(1e-9 + scene.flatness(t.refs[f]));
     // Convex when the triangles fill their convex outline.
     double area = 0, hull = 0;
     for (const auto& tr : tris) area += 0.5 * norm(cross(tr[1] - tr[0], tr[2] - tr[0]));
@@ -144,6 +149,7 @@ ImageFaces image_faces(const TraceScene& scene) {
     t.convex.push_back(o1 - o0 >= 3 && hull <= area * (1 + 1e-9) + 1e-12);
   }
   t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
+  t.vertex_begin.push_back(static_cast<std::uint32_t>(t.vertices.size()));
   t.static_order.resize(t.static_count);
   for (std::uint32_t f = 0; f < t.static_count; ++f) t.static_order[f] = f;
   if (t.static_count > 0) build_sphere_tree(t.spheres, t.tol, t.static_tree, t.static_order, 0, t.static_count);

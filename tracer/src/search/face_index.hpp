@@ -51,6 +51,14 @@ struct ImageFaces {
   std::vector<std::uint32_t> outline_begin;  // static faces + 1
   std::vector<Vec3> outline;
   std::vector<char> convex;  // per static face: its triangles fill its convex outline
+  // Static faces' distinct vertices (CSR) and, per face, how far off its
+  // plane a vertex must lie to count as off it (its flatness): for
+  // face_reaches, asked per candidate (a table over every pair of faces
+  // grows as the faces squared: 0.8 s and 27 MB more peak memory for the
+  // 1.2 km town box, 16 GB for a box 6x wider).
+  std::vector<std::uint32_t> vertex_begin;
+  std::vector<Vec3> vertices;
+  std::vector<double> off_plane;
   // A bounding-sphere tree over the static faces (depth-first; a node's
   // left child follows it): the order-2 search culls whole groups of second
   // faces against the first face's beam instead of testing each.
@@ -72,6 +80,26 @@ struct ImageFaces {
 // The current frame's faces (SnapshotPlan::faces() builds them once per
 // snapshot).
 ImageFaces image_faces(const TraceScene& scene);
+
+// Whether static face g has a vertex strictly on the `side` (> 0: front,
+// < 0: back) of static face f's plane (beyond f's flatness): the only faces
+// a path reflected by f can go on to. False for g == f. g's bounding sphere
+// answers when it clears that band by more than the rounding of these dot
+// products (then every vertex agrees); otherwise each vertex does.
+inline bool face_reaches(const ImageFaces& faces, std::uint32_t f, int side, std::uint32_t g) {
+  if (g == f) return false;
+  const Plane& p = faces.planes[f];
+  const double eps = faces.off_plane[f];
+  const double sgn = side > 0 ? 1 : -1;
+  const TraceScene::Sphere& b = faces.spheres[g];
+  const double hc = sgn * (dot(p.normal, b.centre) - p.offset);
+  constexpr double kRounding = 1e-6;
+  if (hc - b.radius > eps + kRounding) return true;
+  if (hc + b.radius < eps - kRounding) return false;
+  for (std::uint32_t k = faces.vertex_begin[g]; k < faces.vertex_begin[g + 1]; ++k)
+    if (sgn * (dot(p.normal, faces.vertices[k]) - p.offset) > eps) return true;
+  return false;
+}
 
 // Builds a sphere tree over items order[b, e) (spheres[i], tol[i]) into
 // `tree`: median split on the longest axis of the spheres' box, four items

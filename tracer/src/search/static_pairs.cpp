@@ -112,7 +112,7 @@ class StaticPairSearch : public CappedSearch {
     const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds)};
     // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
     walk_beam(
-        b1, beam, p1, ds, [&](std::uint32_t f2) { return scene.static_face_reaches(f1, ds > 0 ? 1 : -1, f2); },
+        b1, beam, p1, ds, [&](std::uint32_t f2) { return face_reaches(faces, f1, ds > 0 ? 1 : -1, f2); },
         [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
     for (const auto& gp : *grounds) ground_between(b1, beam, gp);
@@ -245,7 +245,7 @@ class StaticPairSearch : public CappedSearch {
     ground_set.clear();
     for (std::size_t j = 0; j < gp.faces.size(); ++j) {
       const std::uint32_t g = gp.faces[j];
-      if (g == f1 || !scene.static_face_reaches(f1, b1.ds > 0 ? 1 : -1, g)) continue;
+      if (g == f1 || !face_reaches(faces, f1, b1.ds > 0 ? 1 : -1, g)) continue;
       if (outside_beam(b1, beam, faces.spheres[g], faces.tol[g], 0)) continue;
       ground_set.push_back(static_cast<std::uint32_t>(j));
     }
@@ -258,13 +258,20 @@ class StaticPairSearch : public CappedSearch {
     bg.cone.axis = mirror(beam.cone.axis);
     // After the ground the path runs on I1's side of it (q2 with I1): f2
     // must reach that side of some face g (its own orientation), and is
-    // tried with those.
+    // tried with those. The faces share one plane (either orientation,
+    // bitwise), so the answer is the same for faces of the same flatness.
     auto reaches = [&](std::uint32_t f2) {
       ground_sub.clear();
+      double eps = -1;
+      bool known = false;
       for (const std::uint32_t j : ground_set) {
         const std::uint32_t g = gp.faces[j];
-        if (f2 != g && scene.static_face_reaches(g, (dg > 0) != (gp.flipped[j] != 0) ? 1 : -1, f2))
-          ground_sub.push_back(g);
+        if (f2 == g) continue;
+        if (faces.off_plane[g] != eps) {
+          eps = faces.off_plane[g];
+          known = face_reaches(faces, g, (dg > 0) != (gp.flipped[j] != 0) ? 1 : -1, f2);
+        }
+        if (known) ground_sub.push_back(g);
       }
       return !ground_sub.empty();
     };
