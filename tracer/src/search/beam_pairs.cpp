@@ -4,7 +4,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <vector>
 
 #include "search/beam_geometry.hpp"
@@ -48,14 +47,14 @@ class BeamPairSearch : public CappedSearch {
                  const std::vector<std::uint32_t>& receivers, std::vector<ImageCandidate>& out, const SlabBounds* slabs,
                  bool skip_ground)
       : CappedSearch(scene, faces, nodes, src, receivers, out, slabs), skip_ground(skip_ground) {
-    if (slabs) last_leg_bounds();
+    last_leg_bounds(0);
   }
 
   void pair(const BeamPair& bp) {
     f1 = bp.f1;
     f2 = bp.f2;
     if (over_cap(f1)) return;
-    budget = slabs ? slabs->cap - slabs->at(src, f1) : 0;
+    budget = last_leg_budget(f1);
     if (!unfold()) return;
     ++local.image_sources;
     beam_after_f2();
@@ -82,14 +81,7 @@ class BeamPairSearch : public CappedSearch {
   std::vector<std::uint32_t> tree_stack, third_faces, kept_vehicles;
   BeamSphereTest sphere_test;
   std::vector<std::int64_t> keep;
-  // The fewest slabs a last leg from a static face to any of the receivers
-  // crosses (the slab bounds' minimum over the receivers), per face and per
-  // node of the static tree (the minimum below it); and the slabs the pair's
-  // first leg leaves to the last: a third face over that budget ends no
-  // path, and a tree node over it holds none that does. In a town most
-  // faces a wide beam reaches lie behind buildings from every receiver.
-  std::vector<std::uint8_t> face_last_leg, node_last_leg;
-  int budget = 0;
+  int budget = 0;  // the slabs the pair's first leg leaves to the last (CappedSearch::last_leg_bounds)
   // The pair being searched: the images of the source in f1, then f2
   // (img[0] = the source), and each one's signed distance from the next
   // face's plane; the beam after f2 (pyramid, spread_per_m, cone when
@@ -105,28 +97,6 @@ class BeamPairSearch : public CappedSearch {
 
   bool is_ground(std::uint32_t f) const { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); }
 
-  void last_leg_bounds() {
-    face_last_leg.assign(faces.static_count, std::numeric_limits<std::uint8_t>::max());
-    for (const std::uint32_t r : receivers)
-      for (std::uint32_t f = 0; f < faces.static_count; ++f)
-        face_last_leg[f] = std::min(face_last_leg[f], static_cast<std::uint8_t>(slabs->at(r, f)));
-    // Children follow their parent in the depth-first layout: bottom-up is
-    // from the back.
-    const auto& tree = faces.static_tree;
-    node_last_leg.assign(tree.size(), 0);
-    for (std::size_t at = tree.size(); at-- > 0;) {
-      const auto& node = tree[at];
-      std::uint8_t m = std::numeric_limits<std::uint8_t>::max();
-      if (node.count > 0) {
-        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k)
-          m = std::min(m, face_last_leg[faces.static_order[k]]);
-      } else {
-        m = std::min(node_last_leg[at + 1], node_last_leg[node.right]);
-      }
-      node_last_leg[at] = m;
-    }
-  }
-  bool over_budget(std::uint32_t static_face) const { return slabs && face_last_leg[static_face] > budget; }
 
   // The images in f1 and f2; false when one lies on its face's plane.
   bool unfold() {
@@ -187,10 +157,10 @@ class BeamPairSearch : public CappedSearch {
     walk_static_tree(
         faces, tree_stack,
         [&](const TraceScene::Sphere& sp, double tol, std::uint32_t at) {
-          return (slabs && node_last_leg[at] > budget) || behind(sp) || outside(sp, tol);
+          return last_node_over(at, budget) || behind(sp) || outside(sp, tol);
         },
         [&](std::uint32_t f3) {
-          if (f3 == f2 || over_budget(f3) || (f2_static && !face_reaches(faces, f2, side, f3)) ||
+          if (f3 == f2 || last_face_over(f3, budget) || (f2_static && !face_reaches(faces, f2, side, f3)) ||
               outside(faces.spheres[f3], faces.tol[f3]))
             return;
           if (skip && is_ground(f3)) return;

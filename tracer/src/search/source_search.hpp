@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include "search/face_index.hpp"
@@ -80,6 +81,43 @@ class CappedSearch : public SourceSearch {
   bool over_cap(std::uint32_t f1, std::size_t r, std::uint32_t fl) const {
     return slabs && slabs->at(src, f1) + slabs->at(receivers[r], fl) > slabs->cap;
   }
+
+  // The fewest slabs a last leg from a static face to any receiver from
+  // `first` on crosses (the bounds' minimum over them), per face and per
+  // node of the static tree (the minimum below it): a last face over the
+  // budget a first leg leaves (last_leg_budget) ends no path, and a tree
+  // node over it holds none that does. In a town most faces a wide beam
+  // reaches lie behind buildings from every receiver. Without slab bounds
+  // nothing is over any budget.
+  void last_leg_bounds(std::size_t first) {
+    if (!slabs) return;
+    face_last_leg.assign(faces.static_count, std::numeric_limits<std::uint8_t>::max());
+    for (std::size_t r = first; r < receivers.size(); ++r)
+      for (std::uint32_t f = 0; f < faces.static_count; ++f)
+        face_last_leg[f] = std::min(face_last_leg[f], static_cast<std::uint8_t>(slabs->at(receivers[r], f)));
+    // Children follow their parent in the depth-first layout: bottom-up is
+    // from the back.
+    const auto& tree = faces.static_tree;
+    node_last_leg.assign(tree.size(), 0);
+    for (std::size_t at = tree.size(); at-- > 0;) {
+      const auto& node = tree[at];
+      std::uint8_t m = std::numeric_limits<std::uint8_t>::max();
+      if (node.count > 0) {
+        for (std::uint32_t k = node.begin; k < node.begin + node.count; ++k)
+          m = std::min(m, face_last_leg[faces.static_order[k]]);
+      } else {
+        m = std::min(node_last_leg[at + 1], node_last_leg[node.right]);
+      }
+      node_last_leg[at] = m;
+    }
+  }
+  // The slabs left to the last leg after a first leg to static face f1.
+  int last_leg_budget(std::uint32_t f1) const { return slabs ? slabs->cap - slabs->at(src, f1) : 0; }
+  bool last_face_over(std::uint32_t f, int budget) const { return slabs && face_last_leg[f] > budget; }
+  bool last_node_over(std::uint32_t node, int budget) const { return slabs && node_last_leg[node] > budget; }
+
+ private:
+  std::vector<std::uint8_t> face_last_leg, node_last_leg;
 };
 
 // image_candidates' sequences of two or more static faces (order 2, and

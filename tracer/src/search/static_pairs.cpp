@@ -38,6 +38,7 @@ class StaticPairSearch : public CappedSearch {
     static const std::vector<ImageFaces::GroundPlane> no_planes;
     grounds = ground3 ? &faces.ground_planes : &no_planes;
     mirror_receivers();
+    last_leg_bounds(higher_from);
     for (std::uint32_t f1 = 0; f1 < faces.static_count; ++f1) from_first_face(f1);
   }
 
@@ -85,6 +86,7 @@ class StaticPairSearch : public CappedSearch {
     double ds;
     Vec3 i1;
     double spread_per_m;
+    int budget;  // slabs the first leg leaves to the last (last_leg_budget)
   };
   // The second: face f2, the apex's distance di from its plane and its
   // image I2 there.
@@ -109,10 +111,12 @@ class StaticPairSearch : public CappedSearch {
     // per outline edge (inward normals), padded by the on-face tolerance.
     pyramid.clear();
     outline_pyramid(faces, f1, i1, pyramid);
-    const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds)};
-    // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored receivers.
+    const FirstBounce b1{f1, p1, ds, i1, 2 * faces.tol[f1] / std::fabs(ds), last_leg_budget(f1)};
+    // Order 2 (f1, f2), and order 3 (f1, f2, ground) towards the mirrored
+    // receivers (whose last leg leaves from the ground, not from f2).
     walk_beam(
-        b1, beam, p1, ds, [&](std::uint32_t f2) { return face_reaches(faces, f1, ds > 0 ? 1 : -1, f2); },
+        b1, beam, p1, ds, mirrored.size() == 0,
+        [&](std::uint32_t f2) { return face_reaches(faces, f1, ds > 0 ? 1 : -1, f2); },
         [&](std::uint32_t f2) { second_face(b1, f2); });
     // Order 3 (f1, ground, f2): f1's beam mirrored in each ground face it reaches.
     for (const auto& gp : *grounds) ground_between(b1, beam, gp);
@@ -142,19 +146,24 @@ class StaticPairSearch : public CappedSearch {
   // far side of `plane` (from the side `side` > 0 or < 0 the beam leaves
   // it on) or outside the beam skipped whole (their faces would each fail
   // the same tests: a node's sphere and tol bound theirs); leaf(f2) for
-  // the rest that `reaches` (f2 reaches the side the beam leaves on).
+  // the rest that `reaches` (f2 reaches the side the beam leaves on). With
+  // `f2_last` (every sequence searched ends on f2), also the groups and
+  // faces whose last legs put the sequence over the slab cap.
   template <class Reaches, class Leaf>
-  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, Reaches&& reaches,
-                 Leaf&& leaf) {
+  void walk_beam(const FirstBounce& b1, const Beam& b, const Plane& plane, double side, bool f2_last,
+                 Reaches&& reaches, Leaf&& leaf) {
     walk_static_tree(
         faces, tree_stack,
-        [&](const TraceScene::Sphere& sp, double tol) {
+        [&](const TraceScene::Sphere& sp, double tol, std::uint32_t at) {
+          if (f2_last && last_node_over(at, b1.budget)) return true;
           const double h = dot(plane.normal, sp.centre) - plane.offset;
           if ((side > 0 ? h : -h) + sp.radius <= 0) return true;  // wholly behind: no face reaches
           return outside_beam(b1, b, sp, tol, sp.radius);
         },
         [&](std::uint32_t f2) {
-          if (!reaches(f2) || outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0)) return;
+          if ((f2_last && last_face_over(f2, b1.budget)) || !reaches(f2) ||
+              outside_beam(b1, b, faces.spheres[f2], faces.tol[f2], 0))
+            return;
           leaf(f2);
         });
   }
@@ -275,7 +284,7 @@ class StaticPairSearch : public CappedSearch {
       }
       return !ground_sub.empty();
     };
-    walk_beam(b1, bg, pg, dg, reaches, [&](std::uint32_t f2) { after_ground(b1, pg, dg, i1g, f2); });
+    walk_beam(b1, bg, pg, dg, true, reaches, [&](std::uint32_t f2) { after_ground(b1, pg, dg, i1g, f2); });
   }
 
   // Order 3 (f1, g, f2) through second face f2 of the mirrored beam (apex
