@@ -147,7 +147,7 @@ def chart(result, path):
     for side, cases in result["boxes"].items():
         for k, build in enumerate(result["builds"]):
             xs = [c["vehicles"] for c in cases]
-            name = f"{side} m" + (f", {os.path.basename(build.rstrip('/'))}" if len(result["builds"]) > 1 else "")
+            name = f"{side} m" + (f", {build}" if len(result["builds"]) > 1 else "")
             ax[0].plot(xs, [c["runs"][k]["tracing_s"] for c in cases], "o-", label=name)
             ax[1].plot(xs, [c["runs"][k]["ms_per_pair"] for c in cases], "o-", label=name)
     ax[0].set_xlabel("vehicles")
