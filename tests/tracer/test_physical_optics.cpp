@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cmath>
+#include <cstdio>
 #include <complex>
 #include <vector>
 
@@ -209,6 +210,32 @@ TEST(PhysicalOptics, TracerWeightsAVehicleFacetByItsKirchhoffField) {
       EXPECT_NEAR(db(po / go), db(truth), 0.5) << "side " << side << " offset " << offset;
       EXPECT_LT(std::abs(std::arg(po / go / truth)), 0.2) << "side " << side << " offset " << offset;
     }
+}
+
+// The plate slid along so that the specular point lies off it: as infinite
+// mirrors there is no path; by physical optics the plate still lights the
+// receiver with its Kirchhoff field (an edge's tail), up to two first-zone
+// radii off its outline (r1 = 0.50 m here), and not beyond. The same power
+// as brute-force integration over the plate times the mirror's path.
+TEST(PhysicalOptics, TracerKeepsAFacetWhoseSpecularPointLiesJustOffIt) {
+  using raysweep::tracer::FacetReflection;
+  const double side = 0.5;
+  const cdouble mirror = plate_vehicle_path(side, 0.0, FacetReflection::go);
+  ASSERT_GT(std::abs(mirror), 0);
+  const double r1 = std::sqrt(kLambda * 5.0);
+  for (double off : {0.3, 0.6, 0.9}) {  // the specular point's distance from the plate's edge
+    const double offset = side / 2 + off;
+    EXPECT_EQ(plate_vehicle_path(side, offset, FacetReflection::go), cdouble(0)) << off;
+    const cdouble po = plate_vehicle_path(side, offset, FacetReflection::po);
+    const Plate plate{side, offset, 0, 10, 10, std::atan2(6.0, 8.0)};
+    const cdouble truth = plate.kirchhoff();
+    ASSERT_GT(std::abs(po), 0) << off;
+    std::printf("specular point %.1f m off the plate: tracer %.2f dB, Kirchhoff %.2f dB of the mirror\n", off,
+                db(po / mirror), db(truth));
+    EXPECT_NEAR(db(po / mirror), db(truth), 1.0) << off;
+    EXPECT_LT(db(truth), -6) << off;  // an edge's tail, well below the mirror
+  }
+  EXPECT_EQ(plate_vehicle_path(side, side / 2 + 2.3 * r1, FacetReflection::po), cdouble(0));
 }
 
 }  // namespace

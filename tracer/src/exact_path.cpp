@@ -17,6 +17,14 @@ namespace {
 // The sine below which a grazing segment's reach onto its face stops growing.
 constexpr double kGrazingSineFloor = 0.01;
 
+// With physical optics on vehicle facets, a reflection point this many
+// first-Fresnel-zone radii off its facet (on the facet's plane) still makes
+// a path: the facet's Kirchhoff integral lights it (an edge's tail, about
+// -19 dB of a mirror's at two radii off a large facet; a facet smaller than
+// its zone nearly as much as when the point lies on it). Beyond, its part is
+// left out.
+constexpr double kNearMissFresnelRadii = 2;
+
 // A reflection on a sequence face, or a slab crossed on the way.
 struct Event {
   bool reflection;
@@ -159,10 +167,24 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
   if (!unfold(scene, from, to, faces, planes, points)) return std::nullopt;
   // A reflection point off its face (beyond every tolerance the ray test
   // below grants) makes no path: no ray is cast for it, and it is no near
-  // miss, whatever a leg crosses.
-  for (std::size_t m = 0; m < k; ++m)
-    if (!scene.face_contains(faces[m], points[m + 1], off_face_tolerance(scene, faces[m], points, planes[m], m)))
-      return std::nullopt;
+  // miss, whatever a leg crosses. With physical optics a vehicle facet's
+  // point may lie off it within kNearMissFresnelRadii (off_facet): its leg
+  // then ends in the air beside the facet.
+  const bool po = config.facet_reflection == FacetReflection::po;
+  std::array<bool, kMaxDepth> off_facet{};
+  double total = 0;
+  if (po)
+    for (std::size_t m = 0; m <= k; ++m) total += norm(points[m + 1] - points[m]);
+  double before = 0;
+  for (std::size_t m = 0; m < k; ++m) {
+    before += norm(points[m + 1] - points[m]);
+    const double tol = off_face_tolerance(scene, faces[m], points, planes[m], m);
+    if (scene.face_contains(faces[m], points[m + 1], tol)) continue;
+    if (!po || !scene.is_vehicle(faces[m]) || !(total > before)) return std::nullopt;
+    const double zone = std::sqrt(em.wavelength() * before * (total - before) / total);
+    if (!scene.face_contains(faces[m], points[m + 1], tol + kNearMissFresnelRadii * zone)) return std::nullopt;
+    off_facet[m] = true;
+  }
 
   // Trace every segment: it must end on its face, and what it crosses on the
   // way are slabs (or opaque blockers).
@@ -180,7 +202,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     dirs[m] = dir;
     length += len;
     const FaceRef* skip = m > 0 ? &faces[m - 1] : nullptr;
-    const bool ends_on_face = m < k;
+    const bool ends_on_face = m < k && !off_facet[m];
     const double end_tol = ends_on_face ? std::max(scene.slack(b, 0), 2 * scene.flatness(faces[m]) + 1e-6 * len)
                                         : scene.slack(b, 0) * 0.1;
     // Where the segment meets its face: Embree's float error lies across the
@@ -204,7 +226,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     // nor, on a reflected path, the antennas' own vehicles (the knife edges
     // leave them out: they carry the antennas, so a ray through them would
     // cost nothing; the direct path keeps its rule, docs/tracer.md).
-    const std::uint32_t host_a = m > 0 ? faces[m - 1].instance : 0, host_b = ends_on_face ? faces[m].instance : 0;
+    const std::uint32_t host_a = m > 0 ? faces[m - 1].instance : 0, host_b = m < k ? faces[m].instance : 0;
     auto own = [k](const Node& n) { return k > 0 && n.vehicle >= 0 ? static_cast<std::uint32_t>(n.vehicle) + 1 : 0u; };
     const std::uint32_t own_a = own(from), own_b = own(to);
     auto passed = [&](const FaceRef& f) {
@@ -256,7 +278,7 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
           break;
         }
     if (!reached) return std::nullopt;
-    if (ends_on_face) events.push_back(Event{true, faces[m], b, dir, static_cast<int>(m), length});
+    if (m < k) events.push_back(Event{true, faces[m], b, dir, static_cast<int>(m), length});
   }
   if (transmissions > config.max_transmissions) {
     if (over_cap) *over_cap = true;
