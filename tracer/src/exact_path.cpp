@@ -17,14 +17,6 @@ namespace {
 // The sine below which a grazing segment's reach onto its face stops growing.
 constexpr double kGrazingSineFloor = 0.01;
 
-// With physical optics on vehicle facets, a reflection point this many
-// first-Fresnel-zone radii off its facet (on the facet's plane) still makes
-// a path: the facet's Kirchhoff integral lights it (an edge's tail, about
-// -19 dB of a mirror's at two radii off a large facet; a facet smaller than
-// its zone nearly as much as when the point lies on it). Beyond, its part is
-// left out.
-constexpr double kNearMissFresnelRadii = 2;
-
 // A reflection on a sequence face, or a slab crossed on the way.
 struct Event {
   bool reflection;
@@ -180,8 +172,8 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
     before += norm(points[m + 1] - points[m]);
     const double tol = off_face_tolerance(scene, faces[m], points, planes[m], m);
     if (scene.face_contains(faces[m], points[m + 1], tol)) continue;
-    if (!po || !scene.is_vehicle(faces[m]) || !(total > before)) return std::nullopt;
-    const double zone = std::sqrt(em.wavelength() * before * (total - before) / total);
+    if (!po || !scene.is_vehicle(faces[m])) return std::nullopt;
+    const double zone = fresnel_radius(em.wavelength(), before, total - before);
     if (!scene.face_contains(faces[m], points[m + 1], tol + kNearMissFresnelRadii * zone)) return std::nullopt;
     off_facet[m] = true;
   }

@@ -13,12 +13,27 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 #include <vector>
 
 #include "tracer/em/constants.hpp"
 #include "tracer/vec.hpp"
 
 namespace raysweep::tracer {
+
+// With physical optics on vehicle facets, a reflection point this many
+// first-Fresnel-zone radii (sqrt(lambda d1 d2 / (d1 + d2))) off its facet,
+// on the facet's plane, still makes a path: the facet's Kirchhoff integral
+// lights it (an edge's tail, about -19 dB of a mirror's at two radii off a
+// large facet; a facet smaller than its zone nearly as much as when the
+// point lies on it). Beyond, its part is left out.
+constexpr double kNearMissFresnelRadii = 2;
+
+// The first Fresnel zone's radius at a point d1 and d2 (unfolded) from the
+// ends, wavelength lambda.
+inline double fresnel_radius(double lambda, double d1, double d2) {
+  return d1 + d2 > 0 ? std::sqrt(lambda * d1 * d2 / (d1 + d2)) : 0.0;
+}
 
 // (1 / 2 pi) * sum over the directed edges (a -> b) of int (1 - exp(-j R^2)) dtheta,
 // theta the angle of the edge's points seen from the origin and R their distance:
