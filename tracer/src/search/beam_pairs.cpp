@@ -97,7 +97,6 @@ class BeamPairSearch : public CappedSearch {
 
   bool is_ground(std::uint32_t f) const { return std::binary_search(faces.ground.begin(), faces.ground.end(), f); }
 
-
   // The images in f1 and f2; false when one lies on its face's plane.
   bool unfold() {
     dist = {};
