@@ -69,10 +69,13 @@ class ImageSearch : public CappedSearch {
   }
 
   // Order 2, ground then vehicle (towards every receiver: from the other
-  // end it is vehicle then ground).
+  // end it is vehicle then ground). The faces of one ground plane (a ground
+  // split into patches) share the source's image, bitwise whatever their
+  // orientation, and so its reflections on the vehicles: one search per
+  // plane, then each face's own on-face test.
   void ground_then_vehicle() {
-    for (std::uint32_t g : faces.ground) {
-      const Plane& pg = faces.planes[g];
+    for (const auto& gp : faces.ground_planes) {
+      const Plane& pg = gp.plane;
       const double ds = dot(pg.normal, xs) - pg.offset;
       if (ds == 0) continue;
       const Vec3 i1 = xs - (2 * ds) * pg.normal;
@@ -82,9 +85,12 @@ class ImageSearch : public CappedSearch {
         if (ds > 0 ? h + sv.radius <= 0 : h - sv.radius >= 0) continue;  // not on the source's side
         for (std::size_t r = 0; r < rx.size(); ++r)
           vehicle_reflections(v, i1, r, [&](std::size_t f, const Vec3& q2) {
-            const double d2 = dot(pg.normal, q2) - pg.offset;
-            if (ds * d2 > 0 && on_face(g, crossing(i1, -ds, q2, d2)))
-              out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+            for (const std::uint32_t g : gp.faces) {
+              const Plane& pf = faces.planes[g];
+              const double dg = dot(pf.normal, xs) - pf.offset, d2 = dot(pf.normal, q2) - pf.offset;
+              if (dg * d2 > 0 && on_face(g, crossing(i1, -dg, q2, d2)))
+                out.push_back({receivers[r], {faces.refs[g], faces.refs[f]}});
+            }
           });
       }
     }
