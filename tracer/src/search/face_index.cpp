@@ -149,6 +149,23 @@ ImageFaces image_faces(const TraceScene& scene) {
     t.convex.push_back(o1 - o0 >= 3 && hull <= area * (1 + 1e-9) + 1e-12);
   }
   t.outline_begin.push_back(static_cast<std::uint32_t>(t.outline.size()));
+  t.outline_inward.resize(t.outline.size());
+  for (std::uint32_t f = 0; f < t.static_count; ++f) {
+    const std::uint32_t o0 = t.outline_begin[f], o1 = t.outline_begin[f + 1];
+    for (std::uint32_t k = o0; k < o1; ++k) {
+      const Vec3 side = t.outline[k + 1 < o1 ? k + 1 : o0] - t.outline[k];
+      const double len = norm(side);
+      t.outline_inward[k] = len > 0 ? (1.0 / len) * cross(t.planes[f].normal, side) : Vec3{0, 0, 0};
+    }
+    // A side of no length starts where the next one does: that side's
+    // constraint is its own (a face of no sides at all stays all zero and
+    // holds no point deep inside).
+    for (std::uint32_t k = o1; k-- > o0;) {
+      const Vec3& u = t.outline_inward[k];
+      const std::uint32_t next = k + 1 < o1 ? k + 1 : o0;
+      if (u[0] == 0 && u[1] == 0 && u[2] == 0 && next != k) t.outline_inward[k] = t.outline_inward[next];
+    }
+  }
   t.vertex_begin.push_back(static_cast<std::uint32_t>(t.vertices.size()));
   t.static_order.resize(t.static_count);
   for (std::uint32_t f = 0; f < t.static_count; ++f) t.static_order[f] = f;

@@ -50,6 +50,10 @@ struct ImageFaces {
   // face): the beam a face reflects is the pyramid from the image through it.
   std::vector<std::uint32_t> outline_begin;  // static faces + 1
   std::vector<Vec3> outline;
+  // Per outline vertex k: the unit normal, in the face's plane and pointing
+  // inwards, of the outline's side from vertex k to the next (a point's
+  // distance inside that side is its dot with p - outline[k]).
+  std::vector<Vec3> outline_inward;
   std::vector<char> convex;  // per static face: its triangles fill its convex outline
   // Static faces' distinct vertices (CSR) and, per face, how far off its
   // plane a vertex must lie to count as off it (its flatness): for

@@ -13,11 +13,8 @@ namespace {
 // outline runs counter-clockwise about the normal: inside is to the left).
 bool deep_inside(const ImageFaces& faces, std::uint32_t g, const Vec3& p, double margin) {
   const std::uint32_t o0 = faces.outline_begin[g], o1 = faces.outline_begin[g + 1];
-  const Vec3& n = faces.planes[g].normal;
-  for (std::uint32_t k = o0; k < o1; ++k) {
-    const Vec3 a = faces.outline[k], b = faces.outline[k + 1 < o1 ? k + 1 : o0];
-    if (dot(cross(b - a, p - a), n) < margin * norm(b - a)) return false;
-  }
+  for (std::uint32_t k = o0; k < o1; ++k)
+    if (dot(faces.outline_inward[k], p - faces.outline[k]) < margin) return false;
   return true;
 }
 
@@ -46,10 +43,12 @@ bool crosses_all(const ImageFaces& faces, std::uint32_t g, const Vec3& src, cons
   const Plane& pg = faces.planes[g];
   const double hs = dot(pg.normal, src) - pg.offset;
   for (std::size_t k = 0; k < count; ++k) {
+    // The sides first: most walls tried leave the points on the source's side.
+    const double hp = dot(pg.normal, points[k]) - pg.offset;
+    if (!(hs * hp < 0)) return false;
     const Vec3 w = points[k] - src;
     const double len = norm(w);
-    const double hp = dot(pg.normal, points[k]) - pg.offset;
-    if (!(len > 2 * margin) || !(hs * hp < 0)) return false;
+    if (!(len > 2 * margin)) return false;
     if (!crosses_deep(faces, g, src, points[k], (1.0 / len) * w, len * hs / (hs - hp), margin)) return false;
   }
   return true;
