@@ -322,6 +322,22 @@ bool segment_crosses(const tracer::ImageFaces& faces, std::uint32_t g, const tra
   return true;
 }
 
+// Four rows of random concrete blocks, 45 m apart, `cols` blocks a row
+// `pitch` metres apart from x = `x_first`, on a 200 m ground: the streets
+// of a random town.
+meshkit::Scene block_rows(std::mt19937& rng, int cols, double x_first, double pitch) {
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  meshkit::Scene sc;
+  add_ground(sc, 200);
+  for (int row = 0; row < 4; ++row)
+    for (int b = 0; b < cols; ++b) {
+      const double x0 = x_first + pitch * b + u(0, 8), y0 = -90 + 45 * row + u(0, 6);
+      add_box_object(sc, {x0, y0, 0}, {x0 + u(25, 40), y0 + u(15, 28), u(6, 30)}, "concrete",
+                     "b" + std::to_string(row) + std::to_string(b));
+    }
+  return sc;
+}
+
 // Streets of random blocks, antennas in every street: each bound counts no
 // more convex faces than lie across every segment from the antenna to the
 // face's outline (counted by hand over every static face, no ray), and the
@@ -332,14 +348,7 @@ TEST(ImageSearch, SlabBoundsNeverCountMoreThanLieAcrossEverySegment) {
   std::mt19937 rng(23);
   auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
   for (int town = 0; town < 3; ++town) {
-    meshkit::Scene sc;
-    add_ground(sc, 200);
-    for (int row = 0; row < 4; ++row)
-      for (int b = 0; b < 4; ++b) {
-        const double x0 = -100 + 50 * b + u(0, 8), y0 = -90 + 45 * row + u(0, 6);
-        add_box_object(sc, {x0, y0, 0}, {x0 + u(25, 40), y0 + u(15, 28), u(6, 30)}, "concrete",
-                       "b" + std::to_string(row) + std::to_string(b));
-      }
+    const meshkit::Scene sc = block_rows(rng, 4, -100, 50);
     std::vector<tracer::Node> nodes;
     for (int a = 0; a < 6; ++a)
       nodes.push_back(node("n" + std::to_string(a), {u(-90, 90), -72 + 45 * (a % 3) + u(0, 4), 1.5}));
@@ -589,14 +598,7 @@ TEST(ImageSearch, BeamPairsSkipOnlySequencesOverTheSlabCap) {
   auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
   std::size_t kept = 0, skipped = 0;
   for (int town = 0; town < 2; ++town) {
-    meshkit::Scene sc;
-    add_ground(sc, 200);
-    for (int row = 0; row < 4; ++row)
-      for (int b = 0; b < 3; ++b) {
-        const double x0 = -90 + 60 * b + u(0, 8), y0 = -90 + 45 * row + u(0, 6);
-        add_box_object(sc, {x0, y0, 0}, {x0 + u(25, 40), y0 + u(15, 28), u(6, 30)}, "concrete",
-                       "b" + std::to_string(row) + std::to_string(b));
-      }
+    const meshkit::Scene sc = block_rows(rng, 3, -90, 60);
     std::vector<tracer::Node> nodes;
     for (int a = 0; a < 5; ++a)
       nodes.push_back(node("n" + std::to_string(a), {u(-80, 80), -72 + 45 * (a % 3) + u(0, 4), 1.5}));

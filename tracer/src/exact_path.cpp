@@ -164,15 +164,13 @@ std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& 
   // then ends in the air beside the facet.
   const bool po = config.facet_reflection == FacetReflection::po;
   std::array<bool, kMaxDepth> off_facet{};
-  double total = 0;
-  if (po)
-    for (std::size_t m = 0; m <= k; ++m) total += norm(points[m + 1] - points[m]);
-  double before = 0;
   for (std::size_t m = 0; m < k; ++m) {
-    before += norm(points[m + 1] - points[m]);
     const double tol = off_face_tolerance(scene, faces[m], points, planes[m], m);
     if (scene.face_contains(faces[m], points[m + 1], tol)) continue;
     if (!po || !scene.is_vehicle(faces[m])) return std::nullopt;
+    double before = 0, total = 0;  // unfolded lengths to the point and in all
+    for (std::size_t q = 0; q <= k; ++q) (q <= m ? before : total) += norm(points[q + 1] - points[q]);
+    total += before;
     const double zone = fresnel_radius(em.wavelength(), before, total - before);
     if (!scene.face_contains(faces[m], points[m + 1], tol + kNearMissFresnelRadii * zone)) return std::nullopt;
     off_facet[m] = true;
