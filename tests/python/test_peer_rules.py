@@ -2,7 +2,7 @@
 """Checks bench/peers/sionna/peer_rules.py, the rules both tools' paths go
 through before the Sionna RT comparison, on hand-made paths: which classes
 raysweep traces, duplicates, the path threshold, the range cut against Friis,
-the convergence test. Runs without the peer.
+the convergence figures. Runs without the peer.
 
 usage: PYTHONPATH=bench/peers/sionna:python test_peer_rules.py
 Exits 0 when every check passes; prints the failures and exits 1 otherwise.
@@ -38,8 +38,19 @@ def classes():
     check(in_model([[D]], dict(tracer, vehicle_edge_diffraction=True), on_veh) == [True], "a vehicle's edge")
     got = in_model([[D, R]], dict(tracer, vehicle_edge_diffraction=True), [[False, True, False, False, False]])
     check(got == [False], "an edge with a reflection on a vehicle")
-    got = in_model([[S], [R, R, S], [R, R, R, S], [T, S, T], [S, D]], tracer)
+    got = in_model([[S], [R, R, S], [R, R, R, S], [T, T, S], [S, D]], tracer)
     check(got == [True, True, False, True, False], f"a scattering counts as a bounce: {got}")
+    # raysweep's rays gather from the hits of one end's chain: the scattering
+    # is the first or the last interaction, never between two others.
+    got = in_model([[S, R, R], [S, T], [R, S, R], [T, S, T], [R, S, T]], tracer)
+    check(got == [True, True, False, False, False], f"the scattering at an end of the chain: {got}")
+
+
+def diffuse_then_reflection():
+    types = np.array([[S, R, 0], [R, S, 0], [S, T, 0], [S, 0, 0], [R, R, 0], [R, S, R], [0, 0, 0]])
+    got = rules.diffuse_then_reflection(types).tolist()
+    check(got == [True, False, True, False, False, True, False], f"diffuse then a reflection or slab: {got}")
+    check(rules.diffuse_then_reflection(np.zeros((0, 3), dtype=np.uint8)).size == 0, "no paths, none")
 
 
 def mechanisms():
@@ -83,17 +94,25 @@ def range_cut():
 
 
 def convergence():
-    prev = np.array([-80.0, -100.0, -np.inf, -120.0])
-    ok, p95, worst, same = rules.converged(prev, prev + np.array([0.01, -0.02, 0, 0.05]))
-    check(ok and same and abs(worst - 0.05) < 1e-12, f"converged: {ok} {p95} {worst}")
-    ok, _, _, same = rules.converged(prev, np.array([-80.0, -100.0, -130.0, -120.0]))
-    check(not ok and not same, "a pair that gains paths is not converged")
-    ok, _, worst, _ = rules.converged(prev, prev + np.array([0, 0, 0, 2.0]))
-    check(not ok and worst == 2.0, "a 2 dB change is not converged")
+    inf = np.inf
+    prev = np.array([-80.0, -100.0, -inf, -130.0, -90.0])
+    cur = np.array([-80.05, -100.0, -110.0, -125.0, -inf])
+    total = np.array([-80.0, -100.0, -110.0, -125.0, -inf])
+    worst, p95, appeared = rules.run_change(prev, cur, total, -123.0)
+    # Pair 3 is below the floor (its 5 dB change does not count); pair 2 got
+    # its first paths above it.
+    check(abs(worst - 0.05) < 1e-9 and appeared == 1, f"one more run's change: {worst} {appeared}")
+    check(rules.run_change(prev, prev, total, -123.0)[:2] == (0.0, 0.0), "an unchanged run")
+    # Diffuse powers of two pairs over four runs: mean 1e-10 and 0; the first
+    # pair's total 1e-9: SE = std / 2 relative to it.
+    runs = np.array([[0.5e-10, 0], [1.5e-10, 0], [0.5e-10, 0], [1.5e-10, 0]])
+    se = rules.standard_error_db(runs, np.array([-90.0, -100.0]))
+    want = 10 * math.log10(1 + np.std(runs[:, 0], ddof=1) / 2 / 1e-9)
+    check(abs(se[0] - want) < 1e-12 and se[1] == 0.0, f"standard error: {se} {want}")
 
 
 def main():
-    for f in (classes, mechanisms, duplicates, threshold_and_power, range_cut, convergence):
+    for f in (classes, diffuse_then_reflection, mechanisms, duplicates, threshold_and_power, range_cut, convergence):
         f()
     return report()
 

@@ -50,7 +50,9 @@ def in_model(types, on_vehicle, tracer):
       one reflection on a static face before or after it; on a vehicle's edge
       (vehicle_edge_diffraction) nothing else;
     - diffuse: one scattering, which counts as a bounce (reflections + 1 <=
-      max_depth), slabs within max_transmissions, no edge.
+      max_depth), slabs within max_transmissions, no edge, and the scattering
+      first or last (raysweep's rays gather from the hits of one end's chain;
+      a scattering between reflections is in neither end's chain).
     """
     t = np.asarray(types)
     veh = np.asarray(on_vehicle, dtype=bool)
@@ -63,8 +65,24 @@ def in_model(types, on_vehicle, tracer):
     veh_refl = ((t == SPECULAR) & veh).any(axis=1)
     edge = (dfr == 1) & (dif == 0) & (refr == 0) & (spec <= refl_max) & ~veh_refl
     edge &= ~veh_edge | ((spec == 0) & bool(tracer.get("vehicle_edge_diffraction", False)))
-    diffuse = (dif == 1) & (dfr == 0) & (spec + 1 <= depth) & (refr <= slabs)
+    n = np.count_nonzero(t, axis=1)
+    at_end = (t[:, 0] == DIFFUSE) | (t[np.arange(len(t)), np.maximum(n - 1, 0)] == DIFFUSE) if t.size else n > 0
+    diffuse = (dif == 1) & (dfr == 0) & (spec + 1 <= depth) & (refr <= slabs) & at_end
     return plain | edge | diffuse
+
+
+def diffuse_then_reflection(types):
+    """Paths that scatter diffusely and then reflect or cross a slab (from tx
+    to rx). Sionna hashes such a chain as a specular one with the diffuse
+    interaction as a code, not a point: one path per plane sequence survives,
+    with one sample's weight, so its power in this class is biased low.
+    raysweep traces the class (the receiver end's rays gather it)."""
+    t = np.asarray(types)
+    if t.size == 0:
+        return np.zeros(len(t), dtype=bool)
+    dif = np.cumsum(t == DIFFUSE, axis=1) > 0
+    after = dif & ((t == SPECULAR) | (t == REFRACTION))
+    return after.any(axis=1)
 
 
 def duplicates(pair, tau, types, objects, tol_s=2e-11):
@@ -122,17 +140,26 @@ def pair_power(pair, power, n_pairs):
     return out
 
 
-def converged(prev_db, cur_db, tol_db=0.1, max_db=1.0, quantile=95):
-    """The convergence test of `--converge`: the same set of pairs has paths,
-    the p95 over those pairs of |change| in incoherent gain is below tol_db and
-    the largest change below max_db. Returns (ok, p95 change, max change, same set)."""
-    prev_db, cur_db = np.asarray(prev_db), np.asarray(cur_db)
-    same_set = bool(np.array_equal(np.isfinite(prev_db), np.isfinite(cur_db)))
-    both = np.isfinite(prev_db) & np.isfinite(cur_db)
+def run_change(prev_db, cur_db, total_db, floor_db):
+    """What one more Sionna run changed, over the pairs at or above the floor
+    (by their total gain total_db): the largest |change| of the runs' united
+    (non-diffuse) gain, its p95, and how many such pairs had no paths before."""
+    prev_db, cur_db, total_db = np.asarray(prev_db), np.asarray(cur_db), np.asarray(total_db)
+    use = np.isfinite(total_db) & (total_db >= floor_db)
+    both = use & np.isfinite(cur_db) & np.isfinite(prev_db)
     d = np.abs(cur_db[both] - prev_db[both])
-    p95 = float(np.percentile(d, quantile)) if len(d) else 0.0
-    worst = float(d.max()) if len(d) else 0.0
-    return same_set and p95 < tol_db and worst < max_db, p95, worst, same_set
+    appeared = int((use & np.isfinite(cur_db) & ~np.isfinite(prev_db)).sum())
+    return (float(d.max()) if len(d) else 0.0, float(np.percentile(d, 95)) if len(d) else 0.0, appeared)
+
+
+def standard_error_db(per_run_power, total_db):
+    """Per pair, the standard error of the mean over runs of its diffuse power
+    (per_run_power: runs x pairs), relative to the pair's total power, in dB:
+    10 log10(1 + SE / P)."""
+    x = np.asarray(per_run_power, dtype=float)
+    se = x.std(axis=0, ddof=1) / np.sqrt(x.shape[0])
+    total = np.where(np.isfinite(total_db), 10 ** (np.asarray(total_db, dtype=float) / 10), 0.0)
+    return 10 * np.log10(1 + se / np.maximum(total, 1e-300))
 
 
 def signature(types):

@@ -1,23 +1,36 @@
 """Sionna RT's side of `compare`: run inside the peer's virtual environment.
 
-    python sionna_paths.py --peer DIR --mechanisms a|b|c --out DIR [--samples N | --converge]
+    python sionna_paths.py --peer DIR --mechanisms a|b|c --out DIR [--samples N] [--runs K | --converge]
 
 Reads DIR/scene.xml and DIR/peer.json (written by `raysweep trace --mitsuba
-DIR`), sets Sionna up as peer.json says (materials, carrier, antennas, one
-transmitter and one receiver per node), runs Sionna's PathSolver on the CPU
-(Mitsuba variant llvm_ad_mono_polarized) and writes, for every unordered pair
-i < j traced as tx = i, rx = j:
+DIR`), sets Sionna up as peer.json says (materials, carrier, antennas) and runs
+Sionna's PathSolver on the CPU (Mitsuba variant llvm_ad_mono_polarized), for
+every unordered pair i < j traced as tx = i, rx = j:
 
-    OUT/sionna.json   settings, timings, nodes, pairs (LoS class), convergence history
+- one transmitter per call, with only its receivers j > i: Sionna tests every
+  candidate against every receiver and preallocates its buffers per source, so
+  memory stays that of one source and no pair is solved twice;
+- in runs: the first on Sionna's own Fibonacci lattice (which depends only on
+  N: every source, seed and run would otherwise shoot the same rays), each
+  later one on that lattice turned by a uniform random rotation, with its own
+  seed and its own hash table size (Sionna's hash ignores the seed, so the
+  same table loses the same chains every run);
+- the runs combined: the union of their non-diffuse paths (each path is exact;
+  only its discovery is sampled), the mean of their diffuse records (each
+  run's diffuse weights are unbiased);
+- --converge: runs until one more run changes no pair at or above the
+  sensitivity floor by more than --tol-db (non-diffuse gain; no pair appears
+  there) and, with diffuse on, every such pair's standard error from the
+  runs' spread is within --diffuse-se-db; else --max-runs / --max-hours.
+
+    OUT/sionna.json   settings, timings, peak memory, nodes, pairs (LoS class), the runs' history
     OUT/sionna.npz    the paths, flat: pair, a_re, a_im, tau_s, types [n, depth]
                       (InteractionType codes), objects [n, depth] (index into
                       sionna.json's objects, -1 none)
 
 The paths are Sionna's, unfiltered; `compare` applies peer_rules (raysweep's
-path classes, threshold and range) to them. --converge applies the same rules
-to decide when to stop doubling samples_per_src (peer_rules.converged: the
-same pairs have paths, the p95 over pairs of |change| in incoherent gain is
-below 0.1 dB and the largest change below 1 dB).
+path classes, threshold and range) to them; the convergence figures apply
+the same rules.
 """
 import argparse
 import json
@@ -37,20 +50,25 @@ import mitsuba as mi  # noqa: E402
 mi.set_variant("llvm_ad_mono_polarized")
 import drjit as dr  # noqa: E402
 import sionna.rt as rt  # noqa: E402
+import sionna.rt.path_solvers.sb_candidate_generator as sbg  # noqa: E402
+import sionna.rt.path_solvers.sb_deterministic as sbd  # noqa: E402
 
 IMPORT_S = time.perf_counter() - T_START
 PATTERN = {"isotropic": "iso", "dipole": "dipole", "halfwave": "hw_dipole"}
 # Sionna preallocates max_num_paths_per_src x sources x depth records, and drops
-# candidates beyond the per-source cap silently: start small, and redo a solve
-# with 4x the cap whenever the candidates stored reach it (solve()).
+# candidates beyond the per-source cap silently: start small, and redo a call
+# with 4x the cap whenever the candidates stored reach it (Tables.fits).
 FIRST_PATHS_PER_SRC = 200_000
 # Sionna also drops specular chains whose hash collides with another's in a
-# table of max(max_num_paths_per_src, 1e6) counters per source
-# (SBCandidateGenerator). On the ring road at 1e6 samples a source stores
-# about 29,000 candidates and lost 3.7 % of its valid paths with the 1e6 table
-# (184 of 191), none from 3.2e6 on (191 at 3.2e6 and 12.8e6): the cap is
-# raised until it is at least this many times the candidates per source.
+# table of max(max_num_paths_per_src, MIN_SPEC_COUNT_SIZE) counters per source
+# (SBCandidateGenerator; the class attribute is read at call time, so the
+# table is sized here apart from the buffer). On the ring road at 1e6 samples
+# a source stores about 29,000 candidates and lost 3.7 % of its valid paths
+# with a table of 1e6 (184 of 191), none from 3.2e6 on: the table is kept at
+# least this many times the specular candidates of a source (LoS and diffuse
+# records never touch it).
 HASH_HEADROOM = 100
+MIN_TABLE = 1_000_003
 
 
 def mechanism_flags(mech, tracer):
@@ -117,7 +135,7 @@ def configure_materials(scene, peer, diffuse):
 
 
 def load(peer_dir, peer, diffuse):
-    """The scene with carrier, antennas and one tx and one rx per node."""
+    """The scene with carrier and antennas (set_link adds the nodes)."""
     scene = rt.load_scene(os.path.join(peer_dir, "scene.xml"), merge_shapes=False)
     radio = peer["radio"]
     scene.frequency = float(radio["frequency_hz"])
@@ -127,8 +145,6 @@ def load(peer_dir, peer, diffuse):
     scene.tx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern=pattern, polarization=pol)
     scene.rx_array = rt.PlanarArray(num_rows=1, num_cols=1, pattern=pattern, polarization=pol)
     materials = configure_materials(scene, peer, diffuse)
-    for k, n in enumerate(peer["nodes"]):
-        scene.add(rt.Receiver(name=f"rx{k:05d}", position=mi.Point3f(*map(float, n["position"]))))
     return scene, materials
 
 
@@ -150,70 +166,133 @@ def squeeze(x, lead):
     return x
 
 
-def set_transmitters(scene, peer, batch):
-    for name in list(scene.transmitters):
+def receivers_of(i, n, both_directions):
+    """Source i's receivers: j > i (each unordered pair once, and no work for
+    the pairs (j, i) that another call solves: Sionna tests every candidate
+    against every receiver), or every j != i when the reverse direction is
+    needed too (the diffuse-then-reflection class, collect())."""
+    return [j for j in range(n) if j != i] if both_directions else list(range(i + 1, n))
+
+
+def set_link(scene, peer, i, receivers):
+    """Node i as the only transmitter, these nodes as the receivers."""
+    for name in list(scene.transmitters) + list(scene.receivers):
         scene.remove(name)
-    for k in batch:
-        scene.add(rt.Transmitter(name=f"tx{k:05d}", position=mi.Point3f(*map(float, peer["nodes"][k]["position"]))))
+    nodes = peer["nodes"]
+    scene.add(rt.Transmitter(name=f"tx{i:05d}", position=mi.Point3f(*map(float, nodes[i]["position"]))))
+    for j in receivers:
+        scene.add(rt.Receiver(name=f"rx{j:05d}", position=mi.Point3f(*map(float, nodes[j]["position"]))))
 
 
 class CountingGenerator:
-    """Wraps Sionna's candidate generator to read how many candidates it
-    stored: below max_num_paths_per_src in total, no source can have hit the
-    per-source cap (where Sionna drops candidates silently)."""
+    """Wraps Sionna's candidate generator to read what it stored: all
+    candidates (below max_num_paths_per_src no source can have hit the cap,
+    where Sionna drops candidates silently) and the specular chains among them
+    (the only ones that go through the hash table; LoS and diffuse records
+    are stored as valid paths without it)."""
 
     def __init__(self, inner):
-        self.inner, self.stored = inner, 0
+        self.inner, self.stored, self.specular = inner, 0, 0
 
     def __call__(self, *args, **kw):
         buf = self.inner(*args, **kw)
-        dr.eval(buf.paths_counter)
+        dr.eval(buf.paths_counter, buf.valid)
         self.stored = int(buf.paths_counter.numpy()[0])
+        self.specular = self.stored - int(np.count_nonzero(buf.valid.numpy()[:self.stored]))
         return buf
 
 
-# Records Sionna preallocates per solver call (max_num_paths_per_src x
-# sources), about 200 bytes each at depth 5: batches of sources keep them
-# below this many (5 GB).
-MAX_RECORDS = 25_000_000
+def random_rotation(rng):
+    """A uniformly random rotation (Shoemake's quaternion): Sionna's Fibonacci
+    lattice turned by it keeps its equal-area cells, so 4 pi / N still holds."""
+    u1, u2, u3 = rng.random(3)
+    a, b = np.sqrt(1 - u1), np.sqrt(u1)
+    w, x, y, z = a * np.sin(2 * np.pi * u2), a * np.cos(2 * np.pi * u2), b * np.sin(2 * np.pi * u3), b * np.cos(2 * np.pi * u3)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
-def solve(scene, peer, flags, depth, samples, seed, batch_rays, deterministic, cap=FIRST_PATHS_PER_SRC):
-    """Sionna's paths of every pair i < j (tx = i, rx = j), the transmitters in
-    batches (at most batch_rays rays and MAX_RECORDS preallocated records per
-    call); a call whose candidates reach max_num_paths_per_src is redone with 4x
-    the cap (below it in total, no source can have hit it: Sionna drops
-    candidates beyond it silently), and with 4x the cap whenever that is below
-    HASH_HEADROOM x the candidates per source (hash collisions). Diffuse paths
-    are folded per batch."""
-    n = len(peer["nodes"])
-    out = {"pair": [], "a_re": [], "a_im": [], "tau": [], "types": [], "objects": []}
-    k, raw = 0, 0
-    t0 = time.perf_counter()
-    while k < n - 1:
-        batch = list(range(k, min(n - 1, k + max(1, min(batch_rays // samples, MAX_RECORDS // cap)))))
-        set_transmitters(scene, peer, batch)
-        p, stored = solve_once(scene, flags, depth, samples, seed, deterministic, cap)
-        if stored >= cap:
-            print(f"sionna_paths: {stored} candidates reached max_num_paths_per_src = {cap}: again with {4 * cap}",
+class Lattice:
+    """The turn applied to the rays Sionna spawns (None: its own lattice).
+    The matrix enters the kernels as opaque values: turning the lattice does
+    not recompile them."""
+    rotation = None
+
+
+def _turned(spawn):
+    def spawn_turned(lattice, samples_per_src, src_positions):
+        ray = spawn(lattice, samples_per_src, src_positions)
+        if Lattice.rotation is None:
+            return ray
+        r = [dr.opaque(mi.Float, float(v)) for v in np.ravel(Lattice.rotation)]
+        d = ray.d
+        ray.d = mi.Vector3f(r[0] * d.x + r[1] * d.y + r[2] * d.z, r[3] * d.x + r[4] * d.y + r[5] * d.z,
+                            r[6] * d.x + r[7] * d.y + r[8] * d.z)
+        return ray
+    return spawn_turned
+
+
+# Both candidate generators take the function by name at import: turn it there.
+for _mod in (sbg, sbd):
+    _mod.spawn_ray_from_sources = _turned(_mod.spawn_ray_from_sources)
+
+
+class Tables:
+    """max_num_paths_per_src and the specular hash table's size, kept across
+    calls: they only grow (each new value is a new kernel to compile)."""
+
+    def __init__(self):
+        self.cap, self.table = FIRST_PATHS_PER_SRC, MIN_TABLE
+
+    def fits(self, stored, specular):
+        """False (and larger values) when a call has to be redone."""
+        if stored >= self.cap:
+            print(f"sionna_paths: {stored} candidates reached max_num_paths_per_src = {self.cap}: again with "
+                  f"{4 * self.cap}", file=sys.stderr, flush=True)
+            self.cap *= 4
+            return False
+        if self.table < HASH_HEADROOM * specular:
+            want = odd(HASH_HEADROOM * specular * 2)
+            print(f"sionna_paths: {specular} specular candidates in a hash table of {self.table}: again with {want}",
                   file=sys.stderr, flush=True)
-            cap *= 4
-            continue
-        if cap < HASH_HEADROOM * stored / len(batch):
-            print(f"sionna_paths: {stored} candidates of {len(batch)} sources in a hash table of {cap} per source: "
-                  f"again with {4 * cap}", file=sys.stderr, flush=True)
-            cap *= 4
-            continue
-        part = collect(p, batch, n, depth)
+            self.table = want
+            return False
+        return True
+
+
+def odd(x):
+    return int(x) | 1
+
+
+def solve_run(scene, peer, flags, depth, samples, seed, tables, deterministic, bandwidth, both_directions):
+    """One run: every source alone against its receivers j > i, on the
+    current lattice, with this run's seed and hash table size. Returns the
+    run's paths (diffuse folded per pair, object, delay bin and sequence), its
+    solve time, raw path count and the largest candidate count of a source."""
+    n = len(peer["nodes"])
+    parts, raw, most = [], 0, 0
+    t0 = time.perf_counter()
+    for i in range(n if both_directions else n - 1):
+        receivers = receivers_of(i, n, both_directions)
+        set_link(scene, peer, i, receivers)
+        while True:
+            sbg.SBCandidateGenerator.MIN_SPEC_COUNT_SIZE = tables.table
+            p, stored, specular = solve_once(scene, flags, depth, samples, seed, deterministic, tables.cap)
+            if tables.fits(stored, specular):
+                break
+            del p
+            dr.flush_malloc_cache()
+        most = max(most, stored)
+        part = collect(p, i, receivers, n, depth)
         del p
+        dr.flush_malloc_cache()
         raw += len(part["pair"])
         if flags["diffuse_reflection"]:
-            part = fold_diffuse(part, float(peer["radio"]["bandwidth_hz"]))
-        for key, v in part.items():
-            out[key].append(v)
-        k += len(batch)
-    solve_s = time.perf_counter() - t0
-    return {key: np.concatenate(v) for key, v in out.items()}, solve_s, cap, raw
+            part = fold_diffuse(part, bandwidth)
+        parts.append(part)
+    flat = {key: np.concatenate([q[key] for q in parts]) for key in parts[0]}
+    return flat, time.perf_counter() - t0, raw, most
 
 
 def solve_once(scene, flags, depth, samples, seed, deterministic, cap):
@@ -222,11 +301,27 @@ def solve_once(scene, flags, depth, samples, seed, deterministic, cap):
     solver._candidate_generator = counter
     p = solver(scene, max_depth=depth, samples_per_src=samples, max_num_paths_per_src=cap,
                synthetic_array=True, seed=seed, **flags)
-    return p, counter.stored
+    return p, counter.stored, counter.specular
 
 
-def collect(p, batch, n, depth):
-    """The valid paths of the batch's pairs (tx = i in batch, rx = j > i), flat."""
+def reverse_chains(types, objects):
+    """Each path's interactions in reverse order (the padding stays at the end)."""
+    t, o = np.zeros_like(types), objects.copy()
+    for k, m in enumerate(np.count_nonzero(types, axis=1)):
+        t[k, :m] = types[k, :m][::-1]
+        o[k, :m] = objects[k, :m][::-1]
+    return t, o
+
+
+def collect(p, i, receivers, n, depth):
+    """The valid paths of source i, flat, as pairs i < j run from i to j.
+    Receivers j > i: every path, except, when the receivers j < i are solved
+    too, the diffuse-then-reflection class (peer_rules.diffuse_then_reflection:
+    biased in Sionna's sampling). Receivers j < i: only that class of the pair
+    (j, i), taken from this solve's paths that end in their one scattering
+    after reflections or slabs, reversed (reciprocity; Sionna samples those
+    without bias: the scattering is the chain's last interaction, evaluated
+    per sample)."""
     a_re, a_im = (squeeze(t.numpy(), 0) for t in p.a)
     tau = squeeze(p.tau.numpy(), 0)
     valid = squeeze(p.valid.numpy(), 0).astype(bool)
@@ -234,17 +329,28 @@ def collect(p, batch, n, depth):
     objs = squeeze(p.objects.numpy(), 1)
     out = {"pair": [np.zeros(0, np.int32)], "a_re": [np.zeros(0)], "a_im": [np.zeros(0)], "tau": [np.zeros(0)],
            "types": [np.zeros((0, depth), np.uint8)], "objects": [np.zeros((0, depth), np.uint32)]}
-    for ti, i in enumerate(batch):
-        for j in range(i + 1, n):
-            v = valid[j, ti]
-            if not v.any():
-                continue
-            out["pair"].append(np.full(int(v.sum()), pair_index(i, j, n), dtype=np.int32))
-            out["a_re"].append(a_re[j, ti][v].astype(np.float64))
-            out["a_im"].append(a_im[j, ti][v].astype(np.float64))
-            out["tau"].append(tau[j, ti][v].astype(np.float64))
-            out["types"].append(pad(types[:, j, ti][:, v].T.astype(np.uint8), depth))
-            out["objects"].append(pad(objs[:, j, ti][:, v].T.astype(np.uint32), depth))
+    both = any(j < i for j in receivers)
+    for r, j in enumerate(receivers):
+        v = valid[r, 0]
+        t = pad(types[:, r, 0].T.astype(np.uint8), depth)
+        o = pad(objs[:, r, 0].T.astype(np.uint32), depth)
+        if j < i:
+            # This solve's chains that end in their one scattering, after
+            # reflections or slabs: reversed, the pair (j, i)'s class.
+            last = np.count_nonzero(t, axis=1) - 1
+            v = v & (last >= 1) & (t[np.arange(len(t)), np.maximum(last, 0)] == rules.DIFFUSE)
+            v &= (t == rules.DIFFUSE).sum(axis=1) == 1
+            t, o = reverse_chains(t, o)
+        elif both:
+            v = v & ~rules.diffuse_then_reflection(t)
+        if not v.any():
+            continue
+        out["pair"].append(np.full(int(v.sum()), pair_index(min(i, j), max(i, j), n), dtype=np.int32))
+        out["a_re"].append(a_re[r, 0][v].astype(np.float64))
+        out["a_im"].append(a_im[r, 0][v].astype(np.float64))
+        out["tau"].append(tau[r, 0][v].astype(np.float64))
+        out["types"].append(t[v])
+        out["objects"].append(o[v])
     return {k: np.concatenate(v) for k, v in out.items()}
 
 
@@ -348,52 +454,133 @@ def los_classes(scene, peer, objects):
     return np.where(static, "NLOS", np.where(vehicle, "NLOSV", "LOS"))
 
 
-def solve_union(scene, peer, flags, depth, samples, a):
-    """a.runs solves with seeds a.seed, a.seed + 1, ...: the union of their
-    valid paths. Each path Sionna returns is exact (image method and
-    backtracking), but its candidates are sampled: on the ring road a second
-    solve added 597 of 10,782 paths. A path of a later run that an earlier
-    run already has (pair, interactions, objects, delay to 1 ps) is left out."""
-    flat, solve_s, cap, raw = solve(scene, peer, flags, depth, samples, a.seed, a.batch_rays, a.deterministic)
-    for r in range(1, a.runs):
-        more, s, cap, n_raw = solve(scene, peer, flags, depth, samples, a.seed + r, a.batch_rays, a.deterministic, cap)
-        seen = set(zip(*path_keys(flat)))
-        new = np.array([k not in seen for k in zip(*path_keys(more))], dtype=bool)
-        print(f"sionna_paths: run {r + 1} of {a.runs}: {int(new.sum())} of {len(new)} paths new", file=sys.stderr,
-              flush=True)
-        flat = {key: np.concatenate([flat[key], more[key][new]]) for key in flat}
-        solve_s, raw = solve_s + s, raw + n_raw
-    return flat, solve_s, cap, raw
-
-
 def path_keys(flat):
-    rows = lambda x: [r.tobytes() for r in np.ascontiguousarray(x)]
+    rows = lambda x: [r.tobytes() for r in np.ascontiguousarray(x)]  # noqa: E731
     return (flat["pair"].tolist(), rows(flat["types"]), rows(flat["objects"]),
             np.round(flat["tau"] * 1e12).astype(np.int64).tolist())
 
 
+def split_diffuse(flat):
+    d = (flat["types"] == rules.DIFFUSE).any(axis=1)
+    return {k: v[~d] for k, v in flat.items()}, {k: v[d] for k, v in flat.items()}
+
+
+class Accumulated:
+    """The runs so far: the union of their non-diffuse paths (each is exact,
+    only its discovery is sampled: a path of a later run that an earlier one
+    has, by pair, interactions, objects and delay to 1 ps, is left out) and
+    their diffuse records, whose mean over runs is the estimate (Sionna's
+    diffuse weights are 4 pi / N over the event probabilities: unbiased per
+    run). Each run's diffuse records stay apart for the standard error."""
+
+    def __init__(self, n, bandwidth):
+        self.n, self.bandwidth = n, bandwidth
+        self.specular, self.seen, self.diffuse_runs = None, set(), []
+
+    def add(self, flat):
+        spec, dif = split_diffuse(flat)
+        keys = list(zip(*path_keys(spec)))
+        new = np.array([k not in self.seen for k in keys], dtype=bool)
+        self.seen.update(keys)
+        if self.specular is None:
+            self.specular = {k: v[new] for k, v in spec.items()}
+        else:
+            self.specular = {k: np.concatenate([self.specular[k], spec[k][new]]) for k in spec}
+        self.diffuse_runs.append(dif)
+        return int(new.sum()), len(new)
+
+    def diffuse_mean(self):
+        """The runs' diffuse records folded together, power divided by the runs."""
+        cat = {k: np.concatenate([d[k] for d in self.diffuse_runs]) for k in self.specular}
+        if len(cat["pair"]) == 0:
+            return cat
+        mean = fold_diffuse(cat, self.bandwidth)
+        mean["a_re"] = mean["a_re"] / np.sqrt(len(self.diffuse_runs))
+        return mean
+
+    def flat(self):
+        dif = self.diffuse_mean()
+        return {k: np.concatenate([self.specular[k], dif[k]]) for k in self.specular}
+
+
+def pair_power_rules(flat, veh, peer, n):
+    """Power per pair of the paths peer_rules keeps, before the threshold."""
+    p = flat["a_re"] ** 2 + flat["a_im"] ** 2
+    keep = rules.in_model(flat["types"], veh, peer["tracer"])
+    return rules.pair_power(flat["pair"][keep], p[keep], n * (n - 1) // 2)
+
+
+def convergence(acc, prev_spec_db, scene, peer):
+    """The run's convergence figures over the pairs at or above the floor:
+    the largest change of the non-diffuse gain that this run made, and the
+    standard error of each pair's power from the diffuse runs' spread."""
+    n = acc.n
+    objects = objects_of(scene)
+    flat = acc.flat()
+    _, veh, _ = object_table(flat, objects)
+    g = pair_gains(flat, veh, peer, n)
+    _, sveh, _ = object_table(acc.specular, objects)
+    g_spec = pair_gains(acc.specular, sveh, peer, n)
+    floor = float(peer["radio"]["sensitivity_dbm"] - peer["radio"]["tx_power_dbm"])
+    use = np.isfinite(g) & (g >= floor)
+    out = {"pairs_with_paths": int(np.isfinite(g).sum()), "pairs_above_floor": int(use.sum())}
+    if prev_spec_db is not None:
+        worst, p95, appeared = rules.run_change(prev_spec_db, g_spec, g, floor)
+        out.update(max_change_db=worst, p95_change_db=p95, pairs_appeared=appeared)
+    runs = len(acc.diffuse_runs)
+    if runs >= 2 and any(len(d["pair"]) for d in acc.diffuse_runs):
+        per_run = []
+        for d in acc.diffuse_runs:
+            _, dveh, _ = object_table(d, objects)
+            per_run.append(pair_power_rules(d, dveh, peer, n))
+        se_db = rules.standard_error_db(np.array(per_run), g)[use]
+        out.update(diffuse_se_max_db=float(se_db.max()) if len(se_db) else 0.0,
+                   diffuse_se_p95_db=float(np.percentile(se_db, 95)) if len(se_db) else 0.0)
+    return out, g_spec
+
+
+def converged(step, a, diffuse):
+    if "max_change_db" not in step:
+        return False
+    ok = step["max_change_db"] <= a.tol_db and step["pairs_appeared"] == 0
+    if diffuse:
+        ok &= step.get("diffuse_se_max_db", np.inf) <= a.diffuse_se_db
+    return bool(ok)
+
+
 def run(scene, peer, a, flags, depth, history):
-    """One solve at a.samples; with --converge, double until peer_rules.converged."""
+    """Runs on turned lattices (run 0 on Sionna's own), each with its own seed
+    and hash table size, until one more run changes no pair at or above the
+    floor by more than a.tol_db (and, with diffuse, every such pair's standard
+    error is within a.diffuse_se_db), or a.max_runs / a.max_hours is reached."""
     n = len(peer["nodes"])
-    samples = a.samples
-    prev = None
-    while True:
-        flat, solve_s, cap, raw = solve_union(scene, peer, flags, depth, samples, a)
-        _, veh, _ = object_table(flat, objects_of(scene))
-        g = pair_gains(flat, veh, peer, n)
-        step = {"samples_per_src": samples, "solve_s": solve_s, "paths": int(len(flat["pair"])), "paths_raw": raw,
-                "max_num_paths_per_src": cap, "pairs_with_paths": int(np.isfinite(g).sum()),
+    bandwidth = float(peer["radio"]["bandwidth_hz"])
+    acc, tables, rng = Accumulated(n, bandwidth), Tables(), np.random.default_rng(a.seed)
+    both = flags["diffuse_reflection"] and not a.one_direction
+    prev, total_s, conv = None, 0.0, False
+    for r in range(a.max_runs if a.converge else a.runs):
+        Lattice.rotation = None if r == 0 else random_rotation(rng)
+        if r > 0:  # another table size: other chains collide
+            tables.table = odd(tables.table * 1.07)
+        flat, solve_s, raw, most = solve_run(scene, peer, flags, depth, a.samples, a.seed + r, tables,
+                                             a.deterministic, bandwidth, both)
+        new, total = acc.add(flat)
+        total_s += solve_s
+        step = {"run": r + 1, "samples_per_src": a.samples, "solve_s": solve_s, "paths_raw": raw,
+                "non_diffuse_paths": total, "new_non_diffuse_paths": new,
+                "diffuse_records": int(len(flat["pair"]) - total),
+                "max_candidates_per_src": most, "max_num_paths_per_src": tables.cap, "hash_table": tables.table,
                 "max_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
-        if prev is not None:
-            ok, p95, worst, same = rules.converged(prev, g, a.tol_db, a.max_change_db)
-            step.update(p95_change_db=p95, max_change_db=worst, same_pairs=same, converged=ok)
+        fig, g_spec = convergence(acc, prev, scene, peer)
+        step.update(fig)
+        conv = converged(step, a, flags["diffuse_reflection"])
+        step["converged"] = conv
         history.append(step)
         print(f"sionna_paths: {json.dumps(step)}", file=sys.stderr, flush=True)
-        if not a.converge or step.get("converged"):
-            return flat, solve_s, samples, bool(step.get("converged", False))
-        if samples * 2 > a.max_samples or solve_s * 2.2 > a.max_solve_s:
-            return flat, solve_s, samples, False
-        prev, samples = g, samples * 2
+        prev = g_spec
+        if a.converge and (conv or total_s / (r + 1) * (r + 2) > a.max_hours * 3600):
+            break
+    return acc.flat(), total_s, a.samples, conv
 
 
 def main():
@@ -401,15 +588,19 @@ def main():
     ap.add_argument("--peer", required=True)
     ap.add_argument("--mechanisms", choices=["a", "b", "c"], required=True)
     ap.add_argument("--out", required=True)
-    ap.add_argument("--samples", type=int, default=1_000_000, help="samples_per_src (the start with --converge)")
-    ap.add_argument("--converge", action="store_true")
-    ap.add_argument("--tol-db", type=float, default=0.1, help="--converge: p95 |change| over pairs (dB)")
-    ap.add_argument("--max-change-db", type=float, default=1.0, help="--converge: largest |change| (dB)")
-    ap.add_argument("--max-samples", type=int, default=64_000_000)
-    ap.add_argument("--max-solve-s", type=float, default=1800.0, help="--converge: no step expected to take longer")
-    ap.add_argument("--batch-rays", type=int, default=20_000_000, help="rays per solver call (memory)")
+    ap.add_argument("--samples", type=int, default=1_000_000, help="samples_per_src of each run")
+    ap.add_argument("--runs", type=int, default=2, help="runs without --converge")
+    ap.add_argument("--converge", action="store_true", help="runs until converged (or --max-runs, --max-hours)")
+    ap.add_argument("--tol-db", type=float, default=0.1,
+                    help="--converge: the largest change one more run may make to a pair at or above the floor (dB)")
+    ap.add_argument("--diffuse-se-db", type=float, default=0.2,
+                    help="--converge, diffuse on: the largest standard error of such a pair's power (dB)")
+    ap.add_argument("--max-runs", type=int, default=24)
+    ap.add_argument("--max-hours", type=float, default=2.0, help="--converge: stop before a run would end later")
     ap.add_argument("--seed", type=int, default=1)
-    ap.add_argument("--runs", type=int, default=1, help="solves with seeds seed.. seed+runs-1, their paths' union")
+    ap.add_argument("--one-direction", action="store_true",
+                    help="diffuse on: leave the diffuse-then-reflection class to Sionna's own (biased) sampling "
+                         "instead of the reverse direction's solve")
     ap.add_argument("--deterministic", action="store_true",
                     help="PathSolver(deterministic=True): reproducible, but 7x the memory (7.4 vs 1.0 GiB, demo 20 nodes, 1e5 samples)")
     a = ap.parse_args()
@@ -432,14 +623,19 @@ def main():
                         tau_s=flat["tau"], types=flat["types"], objects=idx, on_vehicle=veh)
     doc = {"sionna_rt": rt.__version__ if hasattr(rt, "__version__") else "", "mitsuba": mi.__version__,
            "drjit": dr.__version__, "variant": mi.variant(), "llvm": os.environ.get("DRJIT_LIBLLVM_PATH", ""),
-           "settings": {"max_depth": depth, "samples_per_src": samples, "seed": a.seed, "runs": a.runs,
+           "settings": {"max_depth": depth, "samples_per_src": samples, "seed": a.seed, "runs": len(history),
+                        "lattices": "run 1 Sionna's Fibonacci lattice, then turned by uniform random rotations",
+                        "sources_per_call": 1,
+                        "diffuse_then_reflection": ("one-direction (Sionna's own, biased)" if a.one_direction else
+                                                    "the reverse direction's reflection-then-diffuse paths"),
                         "deterministic": a.deterministic, "synthetic_array": True,
-                        "max_num_paths_per_src": history[-1]["max_num_paths_per_src"], "batch_rays": a.batch_rays,
+                        "max_num_paths_per_src": history[-1]["max_num_paths_per_src"],
+                        "hash_table": history[-1]["hash_table"],
                         "frequency_hz": scene.frequency[0], "tx_array": PATTERN[peer["radio"].get("antenna", "isotropic")],
                         "polarization": peer["radio"].get("polarization", "V"), **flags},
            "materials": materials, "converge": {"enabled": a.converge, "converged": conv, "tol_db": a.tol_db,
-                                                "max_change_db": a.max_change_db,
-                                                "history": history},
+                                                "diffuse_se_db": a.diffuse_se_db, "history": history},
+           "max_rss_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
            "timing": {"import_s": IMPORT_S, "load_s": load_s, "solve_s": solve_s, "los_class_s": time.perf_counter() - t1},
            "nodes": [nd["id"] for nd in peer["nodes"]], "los_class": los.tolist(), "objects": table}
     with open(os.path.join(a.out, "sionna.json"), "w") as f:
