@@ -23,6 +23,9 @@ numpy/scipy, from the formulas, not from either tool):
             (exterior angle 270 degrees, n = 1.5), receiver in the shadow
             region: UTD (Kouyoumjian-Pathak) soft coefficient, the E field
             parallel to the edge.
+  wedge_h   the same corner turned so that its edge is horizontal: the
+            vertical E field is perpendicular to the edge, UTD's hard
+            coefficient.
 
 Writes DIR/canonical.json and DIR/canonical.md: per case and path, |a| in dB
 of the closed form, raysweep and Sionna, and the differences.
@@ -84,9 +87,10 @@ def utd_transition(x):
     return 2j * s * np.exp(1j * x) * tail
 
 
-def utd_pec_soft(n, phi, phi_i, length, k):
+def utd_pec_soft(n, phi, phi_i, length, k, hard=False):
     """Kouyoumjian-Pathak, perfectly conducting wedge, normal incidence
-    (beta0 = 90 deg), soft (E parallel to the edge): D1 + D2 - (D3 + D4)."""
+    (beta0 = 90 deg): soft (E parallel to the edge) D1 + D2 - (D3 + D4), hard
+    (E perpendicular to it) D1 + D2 + (D3 + D4)."""
     def a_pm(beta, sign):
         nn = round((beta + sign * math.pi) / (2 * math.pi * n))
         return 2 * math.cos((2 * math.pi * n * nn - beta) / 2) ** 2
@@ -100,7 +104,7 @@ def utd_pec_soft(n, phi, phi_i, length, k):
     d3 = term(phi + phi_i, +1)
     d4 = term(phi + phi_i, -1)
     pre = -np.exp(-1j * math.pi / 4) / (2 * n * math.sqrt(2 * math.pi * k))
-    return pre * (d1 + d2 - (d3 + d4))
+    return pre * (d1 + d2 + (1 if hard else -1) * (d3 + d4))
 
 
 def er_wall_power(mat, f, step=0.1):
@@ -250,6 +254,13 @@ def cases():
                     ["tracer.max_depth=1", "tracer.diffuse=false", "tracer.diffraction_reflection=false",
                      "tracer.vehicle_diffraction=false", "tracer.refraction=false"],
                     {"max_depth": 1, "refraction": False, "diffraction": True})
+    # The same corner turned so that its edge is horizontal (along x, at
+    # height 30 m): the vertical E field is perpendicular to the edge, UTD's
+    # hard case. (x, y) of the vertical case -> (y, z - 30).
+    corner_h = box([0, -40, -10], [20, 0, 30])
+    out["wedge_h"] = ([("corner", "metal", *corner_h)],
+                      [(i, 1.5, y, x + 30) for i, x, y, _ in wedge_nodes],
+                      out["wedge"][2], out["wedge"][3])
     # A rough concrete wall: S = 0.4, directive lobe alpha_R = 4, no cross-
     # polarisation; the first-order diffuse power of tiles, rays and Sionna.
     rough = quad([0, -50, 0], [0, 100, 0], [0, 0, 20])
@@ -292,7 +303,7 @@ def closed_forms(name, peer):
         rows.append((("t1", "t2"), "refraction", t_te * lam / (4 * math.pi * 10) * np.exp(-1j * k * 10)))
     elif name == "rough":
         rows.append((("d1", "d2"), "diffuse", math.sqrt(er_wall_power(mats["concrete"], f))))
-    elif name == "wedge":
+    elif name in ("wedge", "wedge_h"):
         tx, edge = np.array([-10, 10, 1.5]), np.array([0, 0, 1.5])
 
         def phi_of(p):  # from face 0 (along -x, the face y = 0) through the exterior
@@ -301,7 +312,7 @@ def closed_forms(name, peer):
             rx = np.array([*wedge_rx(ang), 1.5])
             s_i, s_d = np.linalg.norm(tx - edge), np.linalg.norm(rx - edge)
             length = s_i * s_d / (s_i + s_d)
-            dcoef = utd_pec_soft(1.5, phi_of(rx), phi_of(tx), length, k)
+            dcoef = utd_pec_soft(1.5, phi_of(rx), phi_of(tx), length, k, hard=name == "wedge_h")
             a = lam / (4 * math.pi) / s_i * dcoef * math.sqrt(s_i / (s_d * (s_i + s_d))) * np.exp(-1j * k * (s_i + s_d))
             rows.append(((f"rx{ang}", "tx"), "diffraction", a))
     return rows
