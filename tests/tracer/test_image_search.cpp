@@ -378,6 +378,51 @@ TEST(ImageSearch, SlabBoundsNeverCountMoreThanLieAcrossEverySegment) {
   }
 }
 
+// Streets of random blocks, each antenna testing every pair of a face's
+// adjacent outline vertices (the edges a diffraction search asks about) in
+// face order, as the searches do: the recent blockers hide whatever
+// hidden_by_convex_face hides, and whatever they hide beyond that has a
+// convex face across every segment from the antenna to 11 points along
+// the pair (by hand, no ray).
+TEST(ImageSearch, RecentBlockersHideOnlyWhatAFaceLiesAcross) {
+  using tracer::operator+, tracer::operator-, tracer::operator*;
+  std::mt19937 rng(31);
+  auto u = [&](double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); };
+  std::size_t hidden = 0, beyond = 0;
+  for (int town = 0; town < 3; ++town) {
+    const meshkit::Scene sc = block_rows(rng, 4, -100, 50);
+    tracer::TraceScene scene(sc);
+    const auto faces = tracer::image_faces(scene);
+    for (int a = 0; a < 4; ++a) {
+      const tracer::Vec3 src{u(-90, 90), -72 + 45 * (a % 3) + u(0, 4), 1.5};
+      tracer::RecentBlockers blockers;
+      for (std::uint32_t f = 0; f < faces.static_count; ++f)
+        for (std::uint32_t k = faces.outline_begin[f]; k < faces.outline_begin[f + 1]; ++k) {
+          const std::uint32_t k1 = k + 1 < faces.outline_begin[f + 1] ? k + 1 : faces.outline_begin[f];
+          const tracer::Vec3 ends[2] = {faces.outline[k], faces.outline[k1]};
+          const tracer::FaceRef self{0, f};
+          const bool by_rays = tracer::hidden_by_convex_face(scene, faces, src, ends, 2, &self, 0);
+          const bool recent = blockers.hidden(scene, faces, src, ends, 2, &self, 0, nullptr);
+          ASSERT_TRUE(recent || !by_rays) << "town " << town << " face " << f << " vertex " << k;
+          hidden += recent;
+          if (!recent || by_rays) continue;
+          ++beyond;
+          bool some_face_across = false;
+          for (std::uint32_t g = 0; g < faces.static_count && !some_face_across; ++g) {
+            if (g == f || !faces.convex[g]) continue;
+            bool all = true;
+            for (int s = 0; s <= 10 && all; ++s)
+              all = segment_crosses(faces, g, src, ends[0] + (s / 10.0) * (ends[1] - ends[0]));
+            some_face_across = all;
+          }
+          EXPECT_TRUE(some_face_across) << "town " << town << " face " << f << " vertex " << k;
+        }
+    }
+  }
+  EXPECT_GT(hidden, 1000u);
+  EXPECT_GT(beyond, 10u);  // the recent faces do find faces the first hits do not
+}
+
 // With instanced vehicles (the built-in models, ~110 planar faces each) the
 // order-1 paths are exact: small, distant body panels and windows included.
 TEST(ImageSearch, VehicleReflectionsMatchExhaustiveAtOrder1) {

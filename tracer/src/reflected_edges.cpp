@@ -29,6 +29,7 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
   std::vector<Vec3> pyramid;
   std::vector<std::uint32_t> stack;
   const std::vector<std::uint32_t>* walls = slabs ? &slabs->walls[node] : nullptr;
+  RecentBlockers blockers;
   for (std::uint32_t f = 0; f < faces.static_count; ++f) {
     const Plane& pl = faces.planes[f];
     const double ds = dot(pl.normal, src) - pl.offset;
@@ -96,7 +97,7 @@ void reflected_edges(const TraceScene& scene, const ImageFaces& faces, const Vec
       // path reflected there reaches the edge.
       const Vec3 ends[2] = {crossing(img, -ds, e.a + z0 * e.e, dot(pl.normal, e.a + z0 * e.e) - pl.offset),
                             crossing(img, -ds, e.a + z1 * e.e, dot(pl.normal, e.a + z1 * e.e) - pl.offset)};
-      if (hidden_by_convex_face(scene, faces, src, ends, 2, &self, faces.tol[f], walls)) return;
+      if (blockers.hidden(scene, faces, src, ends, 2, &self, faces.tol[f], walls)) return;
       out.push_back({f, k, z0, z1, zt, norm(v)});
     });
   }

@@ -32,6 +32,7 @@ std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, cons
   tbb::parallel_for(std::size_t{0}, nodes.size(), [&](std::size_t i) {
     if (!wanted[i]) return;
     const Vec3 p = nodes[i].position;
+    RecentBlockers blockers;
     for (std::uint32_t k = 0; k < edges.size(); ++k) {
       const Edge& e = edges[k];
       const Vec3 w = p - e.a;
@@ -40,7 +41,7 @@ std::vector<std::vector<std::uint32_t>> edges_seen(const TraceScene& scene, cons
       if (norm(p - (e.a + z * e.e)) > range) continue;
       if (edge_angle(e, v) > e.n * kPi) continue;
       const Vec3 ends[2] = {e.a, e.b};
-      if (hidden_by_convex_face(scene, faces, p, ends, 2, nullptr, 0, slabs ? &slabs->walls[i] : nullptr)) continue;
+      if (blockers.hidden(scene, faces, p, ends, 2, nullptr, 0, slabs ? &slabs->walls[i] : nullptr)) continue;
       seen[i].push_back(k);
     }
   });

@@ -68,34 +68,29 @@ int walls_across(const ImageFaces& faces, const std::vector<std::uint32_t>& wall
   return found;
 }
 
-// SlabBounds::at(node at src, f): the faces every ray from src to f's
-// outline vertices crosses deep (ascending, intersected ray by ray).
+// SlabBounds::at(node at src, f): the faces every segment from src to f's
+// outline vertices crosses deep. The ray to the first vertex proposes them
+// (its first 16 hits: a lower bound either way); the other vertices keep
+// those whose planes they cross deep (crosses_all, no ray).
 int slabs_to_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, std::uint32_t f, int limit,
-                  std::vector<Hit>& hits, std::vector<std::uint32_t>& common, std::vector<std::uint32_t>& next) {
+                  std::vector<Hit>& hits, std::vector<std::uint32_t>& common) {
   const std::uint32_t o0 = faces.outline_begin[f], o1 = faces.outline_begin[f + 1];
   if (o1 - o0 < 3) return 0;
   const double margin = hiding_margin(scene, src, faces.tol[f]);
   const FaceRef self{0, f};
-  for (std::uint32_t k = o0; k < o1; ++k) {
-    const Vec3 w = faces.outline[k] - src;
-    const double len = norm(w);
-    if (!(len > 2 * margin)) return 0;
-    const Vec3 dir = (1.0 / len) * w;
-    scene.all_hits(src, dir, 0, len, hits, 16, &self);  // the first 16 (a lower bound either way)
-    next.clear();
-    for (const Hit& h : hits)
-      if (h.face.instance == 0 && crosses_deep(faces, h.face.face, src, faces.outline[k], dir, h.t, margin))
-        next.push_back(h.face.face);
-    std::sort(next.begin(), next.end());
-    next.erase(std::unique(next.begin(), next.end()), next.end());
-    if (k == o0) {
-      common.swap(next);
-    } else {
-      const auto end = std::set_intersection(common.begin(), common.end(), next.begin(), next.end(), common.begin());
-      common.erase(end, common.end());
-    }
-    if (common.empty()) return 0;
-  }
+  const Vec3 w = faces.outline[o0] - src;
+  const double len = norm(w);
+  if (!(len > 2 * margin)) return 0;
+  const Vec3 dir = (1.0 / len) * w;
+  scene.all_hits(src, dir, 0, len, hits, 16, &self);
+  common.clear();
+  for (const Hit& h : hits)
+    if (h.face.instance == 0 && crosses_deep(faces, h.face.face, src, faces.outline[o0], dir, h.t, margin))
+      common.push_back(h.face.face);
+  std::sort(common.begin(), common.end());
+  common.erase(std::unique(common.begin(), common.end()), common.end());
+  const auto gone = [&](std::uint32_t g) { return !crosses_all(faces, g, src, &faces.outline[o0 + 1], o1 - o0 - 1, margin); };
+  common.erase(std::remove_if(common.begin(), common.end(), gone), common.end());
   return std::min(static_cast<int>(common.size()), limit);
 }
 
@@ -105,7 +100,7 @@ void node_slab_bounds(const TraceScene& scene, const ImageFaces& faces, const Ve
                       std::uint8_t* lb, std::vector<std::uint32_t>& walls) {
   constexpr std::size_t kRecent = 12;
   std::vector<Hit> hits;
-  std::vector<std::uint32_t> common, next, recent;  // recent: most recent first
+  std::vector<std::uint32_t> common, recent;  // recent: most recent first
   std::vector<std::pair<std::uint32_t, std::uint32_t>> counted;  // (face, faces it counted for)
   auto count = [&](std::uint32_t g) {
     auto it = std::find_if(counted.begin(), counted.end(), [g](const auto& c) { return c.first == g; });
@@ -118,7 +113,7 @@ void node_slab_bounds(const TraceScene& scene, const ImageFaces& faces, const Ve
     common.clear();
     const int known =
         o1 - o0 >= 3 ? walls_across(faces, recent, src, &faces.outline[o0], o1 - o0, f, margin, limit, &common) : 0;
-    const int cast = known < limit ? slabs_to_face(scene, faces, src, f, limit, hits, common, next) : 0;
+    const int cast = known < limit ? slabs_to_face(scene, faces, src, f, limit, hits, common) : 0;
     lb[f] = static_cast<std::uint8_t>(std::max(known, cast));
     for (const std::uint32_t g : common) {
       count(g);
@@ -149,26 +144,64 @@ SlabBounds slab_bounds(const TraceScene& scene, const ImageFaces& faces, const s
   return b;
 }
 
-bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
-                           std::size_t count, const FaceRef* skip, double tol,
-                           const std::vector<std::uint32_t>* walls) {
-  if (count < 2) return false;
+namespace {
+
+// One of `walls` (not `self`) that every segment from src to the points
+// crosses deep (its plane alone), or ~0u.
+std::uint32_t wall_across(const ImageFaces& faces, const std::vector<std::uint32_t>& walls, const Vec3& src,
+                          const Vec3* points, std::size_t count, std::uint32_t self, double margin) {
+  for (const std::uint32_t g : walls)
+    if (g != self && crosses_all(faces, g, src, points, count, margin)) return g;
+  return ~0u;
+}
+
+// hidden_by_convex_face with the face that hides the points (~0u: none).
+std::uint32_t convex_blocker(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                             std::size_t count, const FaceRef* skip, double tol,
+                             const std::vector<std::uint32_t>* walls) {
+  if (count < 2) return ~0u;
   const double margin = hiding_margin(scene, src, tol);
   const std::uint32_t self = skip && skip->instance == 0 ? skip->face : ~0u;
-  if (walls && walls_across(faces, *walls, src, points, count, self, margin, 1) > 0) return true;
+  if (walls) {
+    const std::uint32_t g = wall_across(faces, *walls, src, points, count, self, margin);
+    if (g != ~0u) return g;
+  }
   std::uint32_t blocker = ~0u;
   for (std::size_t k = 0; k < count; ++k) {
     const Vec3 w = points[k] - src;
     const double len = norm(w);
-    if (!(len > 2 * margin)) return false;
+    if (!(len > 2 * margin)) return ~0u;
     const Vec3 dir = (1.0 / len) * w;
     Hit hit;
-    if (!scene.closest_hit(src, dir, 0, len, hit, skip)) return false;
-    if (hit.face.instance != 0 || !faces.convex[hit.face.face]) return false;
-    if (blocker != ~0u && hit.face.face != blocker) return false;
+    if (!scene.closest_hit(src, dir, 0, len, hit, skip)) return ~0u;
+    if (hit.face.instance != 0 || !faces.convex[hit.face.face]) return ~0u;
+    if (blocker != ~0u && hit.face.face != blocker) return ~0u;
     blocker = hit.face.face;
-    if (!crosses_deep(faces, blocker, src, points[k], dir, hit.t, margin)) return false;
+    if (!crosses_deep(faces, blocker, src, points[k], dir, hit.t, margin)) return ~0u;
   }
+  return blocker;
+}
+
+}  // namespace
+
+bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                           std::size_t count, const FaceRef* skip, double tol,
+                           const std::vector<std::uint32_t>* walls) {
+  return convex_blocker(scene, faces, src, points, count, skip, tol, walls) != ~0u;
+}
+
+bool RecentBlockers::hidden(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+                            std::size_t count, const FaceRef* skip, double tol,
+                            const std::vector<std::uint32_t>* walls) {
+  if (count < 2) return false;
+  const std::uint32_t self = skip && skip->instance == 0 ? skip->face : ~0u;
+  std::uint32_t g = wall_across(faces, recent_, src, points, count, self, hiding_margin(scene, src, tol));
+  if (g == ~0u) g = convex_blocker(scene, faces, src, points, count, skip, tol, walls);
+  if (g == ~0u) return false;
+  const auto at = std::find(recent_.begin(), recent_.end(), g);
+  if (at != recent_.end()) recent_.erase(at);
+  else if (recent_.size() == kRecent) recent_.pop_back();
+  recent_.insert(recent_.begin(), g);
   return true;
 }
 

@@ -56,5 +56,20 @@ bool hidden_by_convex_face(const TraceScene& scene, const ImageFaces& faces, con
                            std::size_t count, const FaceRef* skip, double tol,
                            const std::vector<std::uint32_t>* walls = nullptr);
 
+// hidden_by_convex_face for one source's many point sets (edges, parts of
+// faces), the faces that hid the last ones tried first by their planes:
+// neighbouring parts mostly hide behind the same few walls. The same
+// answers as hidden_by_convex_face wherever that finds a face; where a
+// recent face that is not first in line hides the points, true as well
+// (every segment crosses it deep all the same).
+class RecentBlockers {
+ public:
+  bool hidden(const TraceScene& scene, const ImageFaces& faces, const Vec3& src, const Vec3* points,
+              std::size_t count, const FaceRef* skip, double tol, const std::vector<std::uint32_t>* walls);
+
+ private:
+  static constexpr std::size_t kRecent = 4;
+  std::vector<std::uint32_t> recent_;  // most recent first
+};
 
 }  // namespace raysweep::tracer
