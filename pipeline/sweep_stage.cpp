@@ -9,6 +9,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <optional>
 #include <map>
 #include <set>
@@ -245,6 +246,13 @@ class SceneModels {
   std::map<std::string, std::uint32_t> models_;
 };
 
+// The nodes of `now` not in `before` (both sorted).
+std::vector<std::uint32_t> new_nodes(const std::vector<std::uint32_t>& before, const std::vector<std::uint32_t>& now) {
+  std::vector<std::uint32_t> out;
+  std::set_difference(now.begin(), now.end(), before.begin(), before.end(), std::back_inserter(out));
+  return out;
+}
+
 // The frames' records, one file per block in the parts folder, each
 // committed with its share of the sweep's statistics.
 class BlockStore {
@@ -294,7 +302,9 @@ class BlockStore {
                      {"trace_seconds", s.trace_seconds - before_.trace_seconds},
                      {"resolve_seconds", s.resolve_seconds - before_.resolve_seconds},
                      {"record_seconds", record_seconds_},
-                     {"block_seconds", block_seconds_}};
+                     {"block_seconds", block_seconds_},
+                     {"enclosed_antenna_frames", s.enclosed - before_.enclosed},
+                     {"enclosed_nodes", new_nodes(before_.enclosed_nodes, s.enclosed_nodes)}};
     before_ = s;
     record_seconds_ = block_seconds_ = 0;
     write_file_atomic(stats(b), st.dump() + "\n");
@@ -430,7 +440,9 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
                  {"searched_links", 0},  {"recall_broken", 0},   {"carried_sequences", 0},
                  {"carried_paths", 0},   {"vehicle_updates", 0},
                  {"updates_deferred", 0}, {"rays", 0},           {"trace_seconds", 0.0},
-                 {"resolve_seconds", 0.0}, {"record_seconds", 0.0}, {"block_seconds", 0.0}};
+                 {"resolve_seconds", 0.0}, {"record_seconds", 0.0}, {"block_seconds", 0.0},
+                 {"enclosed_antenna_frames", 0}};
+  std::set<std::uint32_t> enclosed;
   const auto t0 = std::chrono::steady_clock::now();
   {
     generators::DatasetWriter writer(staged.path(), header);
@@ -444,7 +456,10 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
         if (v.is_number_float()) v = v.get<double>() + st.value(k, 0.0);
         else v = v.get<std::uint64_t>() + st.value(k, std::uint64_t{0});
       }
+      for (const auto& n : st.value("enclosed_nodes", json::array())) enclosed.insert(n.get<std::uint32_t>());
     }
+    totals["enclosed_nodes"] = json::array();
+    for (const auto n : enclosed) totals["enclosed_nodes"].push_back(nodes.nodes.at(n).id);
     std::vector<std::string> ids;
     for (const auto& n : nodes.nodes) ids.push_back((n.kind == generators::NodeKind::rsu ? "rsu/" : "vehicle/") + n.id);
     writer.finish(nodes.nodes, sweep.object_names(ids));
@@ -453,6 +468,20 @@ json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& he
   // Reading the blocks back, compressing and writing the file.
   totals["write_seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return totals;
+}
+
+// Antennas inside buildings make channels through walls: said, with the
+// first nodes named (the summary lists them all).
+void warn_enclosed(const json& totals) {
+  const auto frames = totals["enclosed_antenna_frames"].get<std::uint64_t>();
+  if (frames == 0) return;
+  const auto& ids = totals["enclosed_nodes"];
+  std::string named;
+  for (std::size_t k = 0; k < ids.size() && k < 8; ++k) named += (k ? ", " : "") + ids[k].get<std::string>();
+  if (ids.size() > 8) named += fmt::format(" and {} more", ids.size() - 8);
+  spdlog::warn("{} antenna-frames of {} nodes stand inside a building's closed volume ({}): their channels pass "
+               "through its walls; the SUMO lanes there run through OSM footprints (passages, misaligned outlines)",
+               frames, ids.size(), named);
 }
 
 json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgress& p, const ShardRecord& shard,
@@ -485,6 +514,7 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
                totals["record_seconds"].get<double>(), totals["block_seconds"].get<double>(),
                totals["write_seconds"].get<double>(), args.out, summary["store"].get<std::string>(),
                summary["bytes_per_link"].get<double>());
+  warn_enclosed(totals);
   if (options.lattice_frames > 1) {
     const auto searched = std::max<std::uint64_t>(1, totals["searched_links"].get<std::uint64_t>());
     const auto solved = totals["carried_sequences"].get<std::uint64_t>();

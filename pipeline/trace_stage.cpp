@@ -133,6 +133,22 @@ json trace_summary(const tracer::Snapshot& snap, std::size_t antennas, double lo
           {"nlos", nlos}, {"trace_ms", trace_s * 1e3}};
 }
 
+// The antennas standing inside a building's closed volume, warned about
+// by name (their channels pass through its walls): [{id, object}].
+json enclosed_antennas(const tracer::TraceScene& scene, const std::vector<tracer::Node>& nodes) {
+  json out = json::array();
+  const auto objects = scene.object_names();
+  for (const auto& n : nodes) {
+    const std::int64_t o = scene.enclosing_object(n.position);
+    if (o < 0) continue;
+    out.push_back({{"id", n.id}, {"object", objects.at(static_cast<std::size_t>(o))}});
+    spdlog::warn("antenna {} at ({:.2f}, {:.2f}, {:.2f}) stands inside {}'s closed volume: its channels pass "
+                 "through the walls (a lane through the building's footprint?)",
+                 n.id, n.position[0], n.position[1], n.position[2], objects.at(static_cast<std::size_t>(o)));
+  }
+  return out;
+}
+
 double seconds_since(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
@@ -152,6 +168,7 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
     grid = tracer::ofdm_grid(tracer::parse_ofdm_grid_spec(args.cfr, "--cfr"), settings.radio.frequency_hz);
   SnapshotInputs in;
   load_snapshot(args, all.file, in);
+  const json enclosed = enclosed_antennas(*in.scene, in.nodes);
 
   json config = settings.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
@@ -176,7 +193,9 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
   const tracer::OfdmGrid* g = grid ? &*grid : nullptr;
   if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov);
   else write_json_output(args, in, snap, g, config, prov);
-  return trace_summary(snap, in.nodes.size(), load_s, trace_s, seconds_since(t0));
+  json summary = trace_summary(snap, in.nodes.size(), load_s, trace_s, seconds_since(t0));
+  if (!enclosed.empty()) summary["enclosed"] = enclosed;
+  return summary;
 }
 
 }  // namespace raysweep::pipeline

@@ -487,6 +487,18 @@ void Sweep::forget_departed() {
   std::erase_if(kept_, [this](const auto& k) { return !cache_.count(k.first); });
 }
 
+// The antennas inside a building this frame: counted, and their nodes
+// kept for the summary (their channels pass through walls).
+void Sweep::note_enclosed(const Antennas& ant) {
+  for (std::size_t k = 0; k < ant.nodes.size(); ++k) {
+    if (scene_.enclosing_object(ant.nodes[k].position) < 0) continue;
+    ++stats_.enclosed;
+    auto& seen = stats_.enclosed_nodes;
+    const auto at = std::lower_bound(seen.begin(), seen.end(), ant.node_of[k]);
+    if (at == seen.end() || *at != ant.node_of[k]) seen.insert(at, ant.node_of[k]);
+  }
+}
+
 FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
   sort_and_check(vehicles, rsus_);
   const bool block_start = frame_index % options_.block_frames == 0;
@@ -498,6 +510,7 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
   const Motion motion = place_vehicles(vehicles);
   if (motion.scene_changed || block_start) pose_vehicles();
   const Antennas ant = antennas();
+  note_enclosed(ant);
 
   // Which pairs to trace.
   const auto n = static_cast<std::uint32_t>(ant.nodes.size());

@@ -130,6 +130,11 @@ struct SweepStats {
   std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
   std::uint64_t paths = 0;
   std::uint64_t rays = 0;
+  // Antenna-frames standing inside a building's closed volume
+  // (TraceScene::enclosing_object: a lane through an OSM footprint), and
+  // those antennas' dataset nodes (sorted, distinct).
+  std::uint64_t enclosed = 0;
+  std::vector<std::uint32_t> enclosed_nodes;
   double trace_seconds = 0;
   double resolve_seconds = 0;  // of which the coherent re-solves
   double hit_ratio() const { return links ? 1.0 - static_cast<double>(traced_links) / links : 0.0; }
@@ -176,6 +181,7 @@ class Sweep {
   Motion place_vehicles(const std::vector<SweepVehicle>& vehicles);
   void pose_vehicles();
   Antennas antennas() const;
+  void note_enclosed(const Antennas& ant);
   bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
   bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
   CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;

@@ -352,3 +352,21 @@ TEST(Sweep, OutOfRangeLinksAndThresholdDropsAreRecorded) {
   EXPECT_GT(in_range, 0u);
   EXPECT_GT(dropped, 0u) << "the canyon has through-building paths far below the direct one";
 }
+
+// Antennas inside a building's closed volume (lanes through footprints) are
+// counted per frame and named by node: one car parked inside the south
+// building, one driving into it (outside at x = -95 and -85, inside from
+// x = -75 on: the box starts at -80), the scenario's four outside.
+TEST(Sweep, AntennasInsideBuildingsAreCountedAndNamed) {
+  Canyon c;
+  generators::SweepOptions opt;
+  generators::Sweep sweep(c.scene, tracer_config(), {}, opt, {});
+  for (int f = 0; f < 4; ++f) {
+    auto v = scenario(c, f);
+    v.push_back(vehicle(4, c.car, 0, -20, 0));
+    v.push_back(vehicle(5, c.car, -95 + 10 * f, -20, 100));
+    sweep.step(f, 0.1 * f, v);
+  }
+  EXPECT_EQ(sweep.stats().enclosed, 4u + 2u);
+  EXPECT_EQ(sweep.stats().enclosed_nodes, (std::vector<std::uint32_t>{4, 5}));
+}

@@ -318,3 +318,32 @@ TEST(TracerScene, GroundIsTheLowestLargeFlatLevelNotALargeFlatRoof) {
   EXPECT_FALSE(ground_at.at(1200));  // large and flat, but a roof
   EXPECT_FALSE(ground_at.at(800));   // small
 }
+
+// An antenna inside a building's closed volume (a lane through its
+// footprint) is named; one beside it, above it, under a roof with no walls,
+// on the roof, or under a vehicle is not. Points on the box's vertical edge
+// and corner line (rays through edges) count as inside once, not twice.
+TEST(TracerScene, EnclosingObjectIsTheBuildingAnAntennaStandsIn) {
+  meshkit::Scene s;
+  add_ground(s, 200);
+  add_box_object(s, {-10, -10, 0}, {10, 10, 12}, "concrete", "way/7");
+  add_box_object(s, {30, -10, 0}, {50, 10, 8}, "concrete", "way/8");
+  // A free-standing roof (a carport): one face, no walls.
+  add_quad(s, "metal", "way/9", {-60, -5, 4}, {-40, -5, 4}, {-40, 5, 4}, {-60, 5, 4});
+  tracer::TraceScene scene(s);
+  const auto way7 = static_cast<std::int64_t>(object_index(scene, "way/7"));
+  const auto way8 = static_cast<std::int64_t>(object_index(scene, "way/8"));
+  EXPECT_EQ(scene.enclosing_object({0, 0, 1.5}), way7);
+  EXPECT_EQ(scene.enclosing_object({3.3, -7.1, 11.9}), way7);
+  EXPECT_EQ(scene.enclosing_object({0, 0, 6}), way7);     // under the roof's diagonal (two triangles)
+  EXPECT_EQ(scene.enclosing_object({40, 0, 1.5}), way8);
+  EXPECT_EQ(scene.enclosing_object({15, 0, 1.5}), -1);    // in the street between
+  EXPECT_EQ(scene.enclosing_object({0, 0, 13}), -1);      // above the roof
+  EXPECT_EQ(scene.enclosing_object({-50, 0, 1.5}), -1);   // under the carport
+  EXPECT_EQ(scene.enclosing_object({-50, 0, 5}), -1);     // on the carport
+  EXPECT_EQ(scene.enclosing_object({0, 0, -1}), -1);      // below the ground
+  Street street;
+  street.scene.set_vehicles({street.at("v", street.bus, 10, 0)});
+  EXPECT_EQ(street.scene.enclosing_object(street.scene.vehicle_antenna(0)), -1);
+  EXPECT_EQ(street.scene.enclosing_object({5, 0, 1.0}), -1);  // inside the bus's body: not a building
+}

@@ -173,6 +173,12 @@ class TraceScene {
   std::vector<std::string> object_names() const;
   std::uint32_t static_object_count() const;
   std::uint32_t vehicle_object(std::size_t v) const { return static_object_count() + static_cast<std::uint32_t>(v); }
+  // The static object whose closed surface holds p (a building an antenna
+  // stands inside: a SUMO lane through an OSM footprint), or -1: a ray
+  // straight up crosses its faces an odd number of times, and so do rays in
+  // two or more of the four horizontal directions (a roof alone, or the
+  // ground, is not crossed sideways). Vehicles are not counted.
+  std::int64_t enclosing_object(const Vec3& p) const;
 
   // The static scene's diffracting edges, extracted once when the scene is
   // built: edges between planar faces that turn by at least 10 degrees

@@ -373,6 +373,32 @@ std::uint32_t TraceScene::static_object_count() const {
   return static_cast<std::uint32_t>(impl_->static_objects.size());
 }
 
+std::int64_t TraceScene::enclosing_object(const Vec3& p) const {
+  // Per static object, the parity of its crossings along each ray: up,
+  // then four horizontal directions (not down: building floors lie in the
+  // ground's plane, and coincident crossings count once).
+  static const Vec3 dirs[5] = {{0, 0, 1}, {1, 0, 0}, {0, 1, 0}, {-1, 0, 0}, {0, -1, 0}};
+  std::vector<std::pair<std::uint32_t, std::array<bool, 5>>> odd;
+  std::vector<Hit> hits;
+  const double reach = 2 * norm(impl_->bounds.max - impl_->bounds.min) + 1;
+  for (int r = 0; r < 5; ++r) {
+    all_hits(p, dirs[r], 0, reach, hits, 256);
+    for (const Hit& h : hits) {
+      if (h.face.instance != 0) continue;
+      const std::uint32_t o = object(h.face);
+      auto it = std::find_if(odd.begin(), odd.end(), [o](const auto& e) { return e.first == o; });
+      if (it == odd.end()) it = odd.insert(odd.end(), {o, {}});
+      it->second[r] = !it->second[r];
+    }
+  }
+  // Closed: crossed an odd number of times upwards (a roof), and so in at
+  // least two horizontal directions (walls; a wall shared with a neighbour
+  // may hide one).
+  for (const auto& [o, parity] : odd)
+    if (parity[0] && parity[1] + parity[2] + parity[3] + parity[4] >= 2) return o;
+  return -1;
+}
+
 meshkit::Bounds TraceScene::static_bounds() const { return impl_->bounds; }
 std::size_t TraceScene::static_triangle_count() const { return impl_->world.triangles.size(); }
 
