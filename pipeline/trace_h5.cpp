@@ -55,6 +55,8 @@ generators::FrameRecord frame_record(const tracer::Snapshot& snap, const Snapsho
   // objects first, then one per node, as the sweep numbers them).
   for (const auto& p : snap.pairs) {
     f.links.push_back(generators::link_record(p, p.tx, p.rx));
+    if (!in.enclosed.empty() && (in.enclosed[p.tx] || in.enclosed[p.rx]))
+      f.links.back().flags |= generators::kLinkEnclosed;
     for (const auto& path : p.paths) {
       f.paths.push_back(generators::path_record(path));
       for (const auto& i : path.interactions) f.interactions.push_back(generators::interaction_record(i, i.object));

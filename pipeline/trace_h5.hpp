@@ -24,6 +24,9 @@ struct SnapshotNodes {
   const std::vector<NodeRow>* antennas = nullptr;
   std::vector<meshkit::VehicleDims> dims;  // per pose
   std::vector<std::string> static_objects;
+  // Per node: its antenna stands inside a building (TraceScene::enclosing_object);
+  // empty: none does.
+  std::vector<char> enclosed;
 };
 
 // The header every writer of a channel dataset gives it: version, commit,

@@ -108,7 +108,7 @@ void write_json_output(const TraceArgs& args, const SnapshotInputs& in, const tr
 
 void write_h5_output(const TraceArgs& args, const SnapshotInputs& in, const tracer::Snapshot& snap,
                      const tracer::OfdmGrid* grid, const TraceSettings& settings, const json& config,
-                     const json& prov) {
+                     const json& prov, const std::vector<char>& inside) {
   const auto header = channel_dataset_header(config, prov, settings.radio, grid);
   SnapshotNodes nodes;
   nodes.nodes = &in.nodes;
@@ -117,6 +117,7 @@ void write_h5_output(const TraceArgs& args, const SnapshotInputs& in, const trac
   nodes.dims = in.dims;
   nodes.static_objects = in.scene->object_names();
   nodes.static_objects.resize(in.scene->static_object_count());
+  nodes.enclosed = inside;
   write_trace_dataset(args.out, header, snap, nodes, grid);
 }
 
@@ -135,12 +136,17 @@ json trace_summary(const tracer::Snapshot& snap, std::size_t antennas, double lo
 
 // The antennas standing inside a building's closed volume, warned about
 // by name (their channels pass through its walls): [{id, object}].
-json enclosed_antennas(const tracer::TraceScene& scene, const std::vector<tracer::Node>& nodes) {
+// `inside`: per node.
+json enclosed_antennas(const tracer::TraceScene& scene, const std::vector<tracer::Node>& nodes,
+                       std::vector<char>& inside) {
   json out = json::array();
   const auto objects = scene.object_names();
-  for (const auto& n : nodes) {
+  inside.assign(nodes.size(), 0);
+  for (std::size_t k = 0; k < nodes.size(); ++k) {
+    const auto& n = nodes[k];
     const std::int64_t o = scene.enclosing_object(n.position);
     if (o < 0) continue;
+    inside[k] = 1;
     out.push_back({{"id", n.id}, {"object", objects.at(static_cast<std::size_t>(o))}});
     spdlog::warn("antenna {} at ({:.2f}, {:.2f}, {:.2f}) stands inside {}'s closed volume: its channels pass "
                  "through the walls (a lane through the building's footprint?)",
@@ -168,7 +174,8 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
     grid = tracer::ofdm_grid(tracer::parse_ofdm_grid_spec(args.cfr, "--cfr"), settings.radio.frequency_hz);
   SnapshotInputs in;
   load_snapshot(args, all.file, in);
-  const json enclosed = enclosed_antennas(*in.scene, in.nodes);
+  std::vector<char> inside;
+  const json enclosed = enclosed_antennas(*in.scene, in.nodes, inside);
 
   json config = settings.to_json();
   config["vehicles"] = args.vehicles.empty() ? "built-in parametric" : args.vehicles;
@@ -191,7 +198,7 @@ json run_trace_stage(const TraceArgs& args, const Settings& all, const std::vect
 
   if (!fs::path(args.out).parent_path().empty()) fs::create_directories(fs::path(args.out).parent_path());
   const tracer::OfdmGrid* g = grid ? &*grid : nullptr;
-  if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov);
+  if (ext == ".h5") write_h5_output(args, in, snap, g, settings, config, prov, inside);
   else write_json_output(args, in, snap, g, config, prov);
   json summary = trace_summary(snap, in.nodes.size(), load_s, trace_s, seconds_since(t0));
   if (!enclosed.empty()) summary["enclosed"] = enclosed;

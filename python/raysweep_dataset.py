@@ -35,6 +35,7 @@ INTERACTION_TYPES = {1: "specular", 2: "refraction", 3: "diffuse", 4: "diffracti
 NODE_KINDS = {0: "vehicle", 1: "rsu"}
 FLAG_CACHED = 1
 FLAG_OUT_OF_RANGE = 2
+FLAG_ENCLOSED = 4  # an end's antenna inside a building (since schema 1.5.0)
 
 LINK_COLUMNS = ("frame", "tx", "rx", "los_class", "flags", "blocker_count", "gain_coherent_db",
                 "gain_incoherent_db", "first_delay_s", "rms_delay_spread_s", "path_count", "path_offset",

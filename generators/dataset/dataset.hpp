@@ -41,6 +41,7 @@ struct NodeState {
 enum LinkFlags : std::uint8_t {
   kLinkCached = 1,      // channel reused from an earlier frame (path cache / update rule)
   kLinkOutOfRange = 2,  // beyond free-space reach of the sensitivity: not traced, no paths
+  kLinkEnclosed = 4,    // an end's antenna stands inside a building's closed volume (channels through walls)
 };
 
 struct LinkRecord {

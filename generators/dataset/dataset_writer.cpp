@@ -160,7 +160,7 @@ struct DatasetWriter::Impl {
       if (!(l.fresnel_clearance <= 1)) bad(at + ": fresnel_clearance above 1 or not a number");
       if (!(l.vehicle_loss_db >= 0) || !std::isfinite(l.vehicle_loss_db))
         bad(at + ": vehicle_loss_db negative or not finite");
-      if (l.flags & ~(kLinkCached | kLinkOutOfRange)) bad(at + ": unknown flag bits");
+      if (l.flags & ~(kLinkCached | kLinkOutOfRange | kLinkEnclosed)) bad(at + ": unknown flag bits");
       if ((l.flags & kLinkOutOfRange) && l.path_count > 0) bad(at + ": out-of-range link with paths");
       paths += l.path_count;
     }

@@ -26,7 +26,7 @@
 
 namespace raysweep::generators {
 
-inline constexpr const char* kDatasetSchemaVersion = "1.4.0";
+inline constexpr const char* kDatasetSchemaVersion = "1.5.0";
 inline constexpr const char* kDatasetFormat = "raysweep-channels";
 
 struct DatasetHeader {

@@ -458,7 +458,8 @@ void Sweep::append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord&
 // Every pair's records from the cache, in pair order; those not in `traced`
 // (a subsequence of `all`) flagged as cached.
 void Sweep::append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
-                         const std::vector<std::uint32_t>& node_of, FrameRecord& frame) {
+                         const std::vector<std::uint32_t>& node_of, const std::vector<char>& inside,
+                         FrameRecord& frame) {
   std::size_t next_traced = 0;
   for (const auto& [i, j] : all) {
     const bool is_traced = next_traced < traced.size() && traced[next_traced] == std::make_pair(i, j);
@@ -466,6 +467,7 @@ void Sweep::append_links(const std::vector<NodePair>& all, const std::vector<Nod
     const auto& c = cache_.at(pair_key(node_of[i], node_of[j]));
     LinkRecord link = c.link;
     if (!is_traced) link.flags |= kLinkCached;
+    if (inside[i] || inside[j]) link.flags |= kLinkEnclosed;
     frame.links.push_back(link);
     frame.paths.insert(frame.paths.end(), c.paths.begin(), c.paths.end());
     frame.interactions.insert(frame.interactions.end(), c.interactions.begin(), c.interactions.end());
@@ -487,16 +489,19 @@ void Sweep::forget_departed() {
   std::erase_if(kept_, [this](const auto& k) { return !cache_.count(k.first); });
 }
 
-// The antennas inside a building this frame: counted, and their nodes
-// kept for the summary (their channels pass through walls).
-void Sweep::note_enclosed(const Antennas& ant) {
+// The antennas inside a building this frame (their channels pass through
+// walls): counted, their nodes kept for the summary; true per antenna.
+std::vector<char> Sweep::note_enclosed(const Antennas& ant) {
+  std::vector<char> inside(ant.nodes.size(), 0);
   for (std::size_t k = 0; k < ant.nodes.size(); ++k) {
     if (scene_.enclosing_object(ant.nodes[k].position) < 0) continue;
+    inside[k] = 1;
     ++stats_.enclosed;
     auto& seen = stats_.enclosed_nodes;
     const auto at = std::lower_bound(seen.begin(), seen.end(), ant.node_of[k]);
     if (at == seen.end() || *at != ant.node_of[k]) seen.insert(at, ant.node_of[k]);
   }
+  return inside;
 }
 
 FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<SweepVehicle> vehicles) {
@@ -510,7 +515,7 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
   const Motion motion = place_vehicles(vehicles);
   if (motion.scene_changed || block_start) pose_vehicles();
   const Antennas ant = antennas();
-  note_enclosed(ant);
+  const std::vector<char> inside = note_enclosed(ant);
 
   // Which pairs to trace.
   const auto n = static_cast<std::uint32_t>(ant.nodes.size());
@@ -542,7 +547,7 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
   FrameRecord frame;
   frame.time_s = time_s;
   append_nodes(vehicles, frame);
-  append_links(all, todo, ant.node_of, frame);
+  append_links(all, todo, ant.node_of, inside, frame);
   if (motion.departed) forget_departed();
   ++stats_.frames;
   stats_.links += all.size();

@@ -181,7 +181,7 @@ class Sweep {
   Motion place_vehicles(const std::vector<SweepVehicle>& vehicles);
   void pose_vehicles();
   Antennas antennas() const;
-  void note_enclosed(const Antennas& ant);
+  std::vector<char> note_enclosed(const Antennas& ant);
   bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
   bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
   CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
@@ -191,7 +191,7 @@ class Sweep {
                               std::vector<NodePair>& todo, std::vector<unsigned char>& searched);
   void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
   void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
-                    const std::vector<std::uint32_t>& node_of, FrameRecord& frame);
+                    const std::vector<std::uint32_t>& node_of, const std::vector<char>& inside, FrameRecord& frame);
   void forget_departed();
   std::vector<tracer::FaceSequences> carried_sequences(std::uint64_t frame, const Antennas& ant,
                                                        const std::vector<NodePair>& search);

@@ -125,7 +125,7 @@ TEST(Dataset, RoundTripEveryField) {
 
   // Root attributes.
   EXPECT_EQ(str_attr(file, "/", "format"), "raysweep-channels");
-  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.4.0");
+  EXPECT_EQ(str_attr(file, "/", "schema_version"), "1.5.0");
   EXPECT_EQ(str_attr(file, "/", "store"), "full");
   EXPECT_EQ(num_attr<std::uint32_t>(file, "/", "paths_top_k", H5T_NATIVE_UINT32), 0u);
   EXPECT_EQ(str_attr(file, "/", "raysweep_version"), "0.1.0-test");
@@ -321,7 +321,7 @@ TEST(Dataset, RoundTripEveryField) {
   EXPECT_TRUE(problems.empty()) << joined(problems);
 
   const auto info = dataset_info(file.string());
-  EXPECT_EQ(info["schema_version"], "1.4.0");
+  EXPECT_EQ(info["schema_version"], "1.5.0");
   EXPECT_EQ(info["store"], "full");
   EXPECT_EQ(info["raysweep_version"], "0.1.0-test");
   EXPECT_EQ(info["frames"], 3);

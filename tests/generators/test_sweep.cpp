@@ -354,7 +354,7 @@ TEST(Sweep, OutOfRangeLinksAndThresholdDropsAreRecorded) {
 }
 
 // Antennas inside a building's closed volume (lanes through footprints) are
-// counted per frame and named by node: one car parked inside the south
+// counted per frame, named by node and flagged on their links: one car parked inside the south
 // building, one driving into it (outside at x = -95 and -85, inside from
 // x = -75 on: the box starts at -80), the scenario's four outside.
 TEST(Sweep, AntennasInsideBuildingsAreCountedAndNamed) {
@@ -365,7 +365,12 @@ TEST(Sweep, AntennasInsideBuildingsAreCountedAndNamed) {
     auto v = scenario(c, f);
     v.push_back(vehicle(4, c.car, 0, -20, 0));
     v.push_back(vehicle(5, c.car, -95 + 10 * f, -20, 100));
-    sweep.step(f, 0.1 * f, v);
+    const auto frame = sweep.step(f, 0.1 * f, v);
+    // The links of an antenna inside carry the flag, the others do not.
+    for (const auto& l : frame.links) {
+      const bool inside = l.tx == 4 || l.rx == 4 || ((l.tx == 5 || l.rx == 5) && f >= 2);
+      EXPECT_EQ((l.flags & generators::kLinkEnclosed) != 0, inside) << "frame " << f << " link " << l.tx << "-" << l.rx;
+    }
   }
   EXPECT_EQ(sweep.stats().enclosed, 4u + 2u);
   EXPECT_EQ(sweep.stats().enclosed_nodes, (std::vector<std::uint32_t>{4, 5}));

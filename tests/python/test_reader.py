@@ -46,7 +46,7 @@ def run(path, e, scratch):
         attrs = ds.attrs
         check(attrs["config"] == e["config"], f"config {attrs['config']}")
         check(attrs["seed"] == e["seed"], f"seed {attrs['seed']}")
-        check(attrs["schema_version"] == "1.4.0", f"schema_version {attrs['schema_version']}")
+        check(attrs["schema_version"] == "1.5.0", f"schema_version {attrs['schema_version']}")
         check(ds.store == "full" and ds.has_paths, f"store {ds.store}")
 
         # frame(i)
