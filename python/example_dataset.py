@@ -11,7 +11,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from raysweep_dataset import FLAG_CACHED, FLAG_OUT_OF_RANGE, LOS_CLASSES, open_dataset  # noqa: E402
+from raysweep_dataset import FLAG_CACHED, FLAG_ENCLOSED, FLAG_OUT_OF_RANGE, LOS_CLASSES, open_dataset  # noqa: E402
 
 COLORS = {0: "#2a9d8f", 1: "#e9c46a", 2: "#e76f51"}
 
@@ -38,7 +38,8 @@ def main():
         n = ds.link_count
         cached = int(np.sum(links["flags"] & FLAG_CACHED != 0))
         oor = int(np.sum(links["flags"] & FLAG_OUT_OF_RANGE != 0))
-        print(f"links         {n} ({cached} cached, {oor} out of range)")
+        enclosed = int(np.sum(links["flags"] & FLAG_ENCLOSED != 0))
+        print(f"links         {n} ({cached} cached, {oor} out of range, {enclosed} with an antenna inside a building)")
         print(f"paths         {ds.path_count} ({ds.path_count / max(n, 1):.2f} per link)")
         print(f"cfr           {'yes' if ds.has_cfr else 'no'}")
         print("LoS class     share     median coherent gain (links with paths)")
