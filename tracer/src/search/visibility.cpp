@@ -89,7 +89,9 @@ int slabs_to_face(const TraceScene& scene, const ImageFaces& faces, const Vec3& 
       common.push_back(h.face.face);
   std::sort(common.begin(), common.end());
   common.erase(std::unique(common.begin(), common.end()), common.end());
-  const auto gone = [&](std::uint32_t g) { return !crosses_all(faces, g, src, &faces.outline[o0 + 1], o1 - o0 - 1, margin); };
+  const auto gone = [&](std::uint32_t g) {
+    return !crosses_all(faces, g, src, &faces.outline[o0 + 1], o1 - o0 - 1, margin);
+  };
   common.erase(std::remove_if(common.begin(), common.end(), gone), common.end());
   return std::min(static_cast<int>(common.size()), limit);
 }
