@@ -503,6 +503,7 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
   summary["bytes_per_link"] = links ? static_cast<double>(bytes) / links : 0.0;
   summary["coherence"] = options.coherence;
   summary["lattice_frames"] = options.lattice_frames;
+  summary["diffuse_frames"] = options.diffuse_frames;
   summary["store"] = generators::store_level_name(cfg.store);
   summary["paths_top_k"] = cfg.paths_top_k;
   spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, {} of them searched, cache hit "

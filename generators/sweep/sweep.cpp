@@ -75,6 +75,7 @@ Sweep::Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, cons
         "sweep: d0, coherence time, cache margin, coherence margin and volatile share must be >= 0");
   if (options_.coherence_frames == 0) throw std::invalid_argument("sweep: coherence_frames must be at least 1");
   if (options_.lattice_frames == 0) throw std::invalid_argument("sweep: lattice_frames must be at least 1");
+  if (options_.diffuse_frames == 0) throw std::invalid_argument("sweep: diffuse_frames must be at least 1");
   std::sort(rsus_.begin(), rsus_.end(), [](const SweepRsu& a, const SweepRsu& b) { return a.node < b.node; });
 }
 
@@ -322,14 +323,18 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
   stats_.recall_broken += search.size() - todo.size();
   std::sort(search.begin(), search.end());
   tracer::Snapshot traced;
+  tracer::TracerConfig turned = tracer_;
+  // The diffuse gathering also shoots the lattices of the frames before
+  // (their turns depend on the frame index alone: no state to carry).
+  for (std::uint32_t k = 1; k < options_.diffuse_frames; ++k)
+    turned.diffuse_turns.push_back(frame_lattice_turn(tracer_.lattice_turn, frame - k));
   if (options_.lattice_frames > 1) {
-    tracer::TracerConfig turned = tracer_;
     turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
     const auto carried = carried_sequences(frame, ant, search);
     traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_, carried);
     for (std::size_t p = 0; p < search.size(); ++p) keep_found(frame, ant, search[p], traced.pairs[p], carried[p]);
   } else {
-    traced = tracer::trace_pairs(scene_, ant.nodes, search, tracer_, radio_);
+    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_);
   }
   stats_.searched_links += search.size();
 

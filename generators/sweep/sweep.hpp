@@ -43,7 +43,10 @@
 // and K frames after, whatever the later lattices sample, and one that no
 // longer holds adds nothing. Over static scenery a frame thus has the paths
 // of every lattice so far; under traffic, of the last K frames' at least.
-// Diffuse records stay the frame's own lattice's.
+// Diffuse records are the frame's own lattice's, and with `diffuse_frames`
+// D > 1 the mean over the lattices of the frame and its D - 1 frames
+// before, all shot from this frame's positions: the diffuse estimate has D
+// times the samples, and consecutive frames share D - 1 lattices of them.
 //
 // The cache, the update rule, the coherence and the carried sequences restart at every block of
 // `block_frames` frames (every vehicle placed afresh, every pair traced), so
@@ -92,6 +95,10 @@ struct SweepOptions {
   // Turned lattices: a searched pair also solves the sampled sequences that
   // gave it a path in its last lattice_frames frames (1: none, every frame the same lattice).
   std::uint32_t lattice_frames = 4;
+  // Diffuse samples shared by consecutive frames: a frame's diffuse
+  // gathering shoots its own lattice and those of its diffuse_frames - 1
+  // frames before (tracer.diffuse_turns), each weighted alike (1: its own).
+  std::uint32_t diffuse_frames = 1;
   std::optional<tracer::OfdmGrid> cfr;  // store each link's frequency response
 };
 

@@ -243,6 +243,9 @@ const Table<SweepSettings>& sweep_table() {
     t.key("lattice_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.lattice_frames), "",
           "turned lattices: each frame's rays on a lattice turned by the frame, and a searched pair also solves "
           "the sampled sequences that gave it a path in its last lattice_frames frames (1: off)");
+    t.key("diffuse_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.diffuse_frames), "",
+          "diffuse samples shared by consecutive frames: a frame's diffuse gathering also shoots the lattices of "
+          "its diffuse_frames - 1 frames before, all weighted alike (1: its own lattice only)");
     return t;
   }();
   return t;

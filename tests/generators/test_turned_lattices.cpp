@@ -6,7 +6,8 @@
 // the bits of one search over the union of those K lattices and approaches
 // the exhaustive search; under moving traffic no frame loses a path of its
 // own lattice; threads and block boundaries (shards, resume) do not change
-// a bit.
+// a bit, also when the diffuse gathering shoots the frames before's
+// lattices too ([sweep] diffuse_frames).
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -253,7 +254,10 @@ TEST(TurnedLattice, MovingTrafficKeepsEveryPathOfTheFramesOwnLattice) {
   EXPECT_GT(turned.stats().carried, 0u);
 }
 
-TEST(TurnedLattice, ThreadsAndBlockBoundariesDoNotMatter) {
+// With the frame's own diffuse lattice, and with the two frames' before too.
+class TurnedLatticeSplit : public ::testing::TestWithParam<std::uint32_t> {};
+
+TEST_P(TurnedLatticeSplit, ThreadsAndBlockBoundariesDoNotMatter) {
   tracer::TraceScene scene(street_geometry());
   const auto car = add_library_model(scene, "passenger"), bus = add_library_model(scene, "bus");
   auto cfg = sparse_config();
@@ -266,6 +270,7 @@ TEST(TurnedLattice, ThreadsAndBlockBoundariesDoNotMatter) {
   };
   auto opts = turned_options(4);
   opts.block_frames = 5;
+  opts.diffuse_frames = GetParam();
   auto run = [&](int threads, std::uint64_t first) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
     generators::Sweep sweep(scene, cfg, {}, opts, {{10, {0, 9, 6}}});
@@ -276,4 +281,42 @@ TEST(TurnedLattice, ThreadsAndBlockBoundariesDoNotMatter) {
   const auto one = run(1, 0), two = run(2, 0), second_block = run(2, 5);
   for (std::size_t f = 0; f < one.size(); ++f) EXPECT_TRUE(same_frame(one[f], two[f])) << "frame " << f;
   for (std::size_t f = 5; f < one.size(); ++f) EXPECT_TRUE(same_frame(one[f], second_block[f - 5])) << "frame " << f;
+}
+
+INSTANTIATE_TEST_SUITE_P(DiffuseFrames, TurnedLatticeSplit, ::testing::Values(1u, 3u));
+
+// [sweep] diffuse_frames = D: frame f's diffuse records are those of its own
+// lattice and the lattices of frames f - 1 .. f - D + 1, all shot from frame
+// f's positions (tracer.diffuse_turns): the same numbers as that trace.
+TEST(TurnedLattice, DiffuseFramesShootTheFramesBeforesLattices) {
+  tracer::TraceScene scene(street_geometry());
+  const auto car = add_library_model(scene, "passenger"), bus = add_library_model(scene, "bus");
+  auto cfg = sparse_config();
+  cfg.diffuse = true;
+  cfg.diffuse_roulette_db = 300;  // every sample: the mean is then exact
+  auto opts = turned_options(1);
+  opts.diffuse_frames = 3;
+  generators::Sweep sweep(scene, cfg, {}, opts, {{10, {0, 9, 6}}});
+  std::size_t differs = 0;
+  for (std::uint64_t f = 0; f < 6; ++f) {
+    const double t = 0.1 * static_cast<double>(f);
+    const std::vector<SweepVehicle> now = {vehicle(0, car, -40 + 12 * t, -4, 90, 12),
+                                           vehicle(1, bus, 30 - 10 * t, 4, 270, 10)};
+    const FrameRecord fr = sweep.step(f, t, now);
+    auto by_hand = cfg;
+    by_hand.diffuse_turns = {generators::frame_lattice_turn(0, f - 1), generators::frame_lattice_turn(0, f - 2)};
+    generators::Sweep fresh(scene, by_hand, {}, turned_options(1), {{10, {0, 9, 6}}});
+    const FrameRecord want = fresh.step(0, t, now);
+    generators::Sweep own(scene, cfg, {}, turned_options(1), {{10, {0, 9, 6}}});
+    const FrameRecord alone = own.step(0, t, now);
+    ASSERT_EQ(fr.links.size(), want.links.size());
+    for (std::size_t l = 0; l < fr.links.size(); ++l) {
+      EXPECT_EQ(fr.links[l].gain_incoherent_db, want.links[l].gain_incoherent_db) << "frame " << f << " link " << l;
+      differs += fr.links[l].gain_incoherent_db != alone.links[l].gain_incoherent_db;
+    }
+  }
+  EXPECT_GT(differs, 0u) << "the frames before's lattices changed nothing";
+  generators::SweepOptions bad = turned_options(1);
+  bad.diffuse_frames = 0;
+  EXPECT_THROW(generators::Sweep(scene, cfg, {}, bad, {{10, {0, 9, 6}}}), std::invalid_argument);
 }

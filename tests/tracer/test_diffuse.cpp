@@ -1027,3 +1027,84 @@ TEST(Diffuse, RouletteIsUnbiasedWithinItsBoundAndSkipsShadowRays) {
   const auto one = run(1);
   EXPECT_EQ(pair_diffuse(one), p_on);
 }
+
+// TracerConfig::diffuse_turns: the rays of more lattices gather diffuse
+// power, every lattice's samples weighted alike. Without the roulette a
+// record's power is linear in its samples, so each pair's diffuse power is
+// the mean of the lattices' own estimates (to rounding: the sums run in
+// another order), and the paths other than diffuse are the frame's own
+// lattice's alone (the other lattices propose nothing).
+TEST(Diffuse, MoreLatticesGiveTheMeanOfTheirEstimates) {
+  const tracer::TraceScene scene(street());
+  const auto nodes = street_nodes();
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = 1024;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  cfg.diffuse_roulette_db = 300;  // off
+  auto run = [&](std::uint64_t turn, std::vector<std::uint64_t> more) {
+    auto c = cfg;
+    c.lattice_turn = turn;
+    c.diffuse_turns = std::move(more);
+    return tracer::trace_snapshot(scene, nodes, c, {});
+  };
+  const auto one = run(7, {}), mixed = run(7, {8, 9});
+  std::vector<double> mean(one.pairs.size(), 0.0);
+  for (std::uint64_t turn : {7, 8, 9}) {
+    const auto p = pair_diffuse(run(turn, {}));
+    for (std::size_t k = 0; k < p.size(); ++k) mean[k] += p[k] / 3;
+  }
+  const auto got = pair_diffuse(mixed), alone = pair_diffuse(one);
+  double moved = 0;
+  for (std::size_t k = 0; k < got.size(); ++k) {
+    ASSERT_GT(mean[k], 0) << "pair " << k;
+    EXPECT_NEAR(got[k] / mean[k], 1.0, 1e-9) << "pair " << k;
+    moved = std::max(moved, std::fabs(got[k] / alone[k] - 1));
+    // The specular, direct and refracted paths: lattice 7's, bit for bit.
+    std::vector<tracer::Path> a, b;
+    for (const auto& p : one.pairs[k].paths)
+      if (p.origin.kind != tracer::PathOrigin::Kind::diffuse) a.push_back(p);
+    for (const auto& p : mixed.pairs[k].paths)
+      if (p.origin.kind != tracer::PathOrigin::Kind::diffuse) b.push_back(p);
+    ASSERT_EQ(a.size(), b.size()) << "pair " << k;
+    for (std::size_t q = 0; q < a.size(); ++q) EXPECT_EQ(a[q].a, b[q].a) << "pair " << k;
+  }
+  EXPECT_GT(moved, 0.01) << "the lattices' estimates agree: the test shows nothing";
+  EXPECT_GT(mixed.stats.rays, one.stats.rays);
+}
+
+// Three lattices' samples against one's: over many turns, each pair's
+// diffuse power scatters less around a converged estimate (64 x the rays).
+// Independent estimates would scatter sqrt(3) x less; the turned lattices
+// of one direction set are not independent, so the bound is looser.
+TEST(Diffuse, MoreLatticesScatterLessAroundTheConvergedPower) {
+  const tracer::TraceScene scene(street());
+  const auto nodes = street_nodes();
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  cfg.specular = false;
+  cfg.refraction = false;
+  cfg.rays_per_source = 256 * 64;
+  const auto truth = pair_diffuse(tracer::trace_snapshot(scene, nodes, cfg, {}));
+  cfg.rays_per_source = 256;
+  double sq1 = 0, sq3 = 0;
+  for (std::uint64_t t = 1; t <= 12; ++t) {
+    auto c = cfg;
+    c.lattice_turn = 3 * t;
+    const auto one = pair_diffuse(tracer::trace_snapshot(scene, nodes, c, {}));
+    c.diffuse_turns = {3 * t + 1, 3 * t + 2};
+    const auto three = pair_diffuse(tracer::trace_snapshot(scene, nodes, c, {}));
+    for (std::size_t k = 0; k < truth.size(); ++k) {
+      ASSERT_GT(truth[k], 0) << "pair " << k;
+      sq1 += std::pow(one[k] / truth[k] - 1, 2);
+      sq3 += std::pow(three[k] / truth[k] - 1, 2);
+    }
+  }
+  const double n = 12.0 * static_cast<double>(truth.size());
+  std::printf("diffuse power against 64 x the rays, rms relative error: one lattice %.4f, three %.4f\n", std::sqrt(sq1 / n),
+              std::sqrt(sq3 / n));
+  EXPECT_LT(std::sqrt(sq3 / n), 0.75 * std::sqrt(sq1 / n));
+}

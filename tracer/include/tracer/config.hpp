@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <map>
 #include <string>
+#include <vector>
 
 #include "tracer/em/antenna.hpp"
 #include "tracer/em/materials.hpp"
@@ -73,6 +74,14 @@ struct TracerConfig {
   // The lattice's turn (fibonacci_sphere(n, turn); 0: not turned). Sweeps
   // with [sweep] lattice_frames > 1 set it per frame (generators/sweep).
   std::uint64_t lattice_turn = 0;
+  // More lattices for the diffuse gathering alone (their turns; none by
+  // default): their rays gather diffuse power as the frame's own do, and
+  // every lattice's samples count 1 / (1 + diffuse_turns.size()), so the
+  // diffuse records are the mean of that many lattices' estimates. Sweeps
+  // with [sweep] diffuse_frames > 1 set them to the frames' before
+  // (generators/sweep): consecutive frames share most of their samples.
+  // Not a TOML setting of its own.
+  std::vector<std::uint64_t> diffuse_turns;
   // Reception sphere radius = factor * angular ray spacing * unfolded length.
   // Candidates are refined exactly, so a generous sphere only costs time.
   double reception_radius_factor = 1.0;

@@ -83,6 +83,10 @@ struct DiffuseTargets {
   // slabs).
   bool first_order = true;
   double bin_s = 1e-7;  // delay bin width
+  // The share of the estimate one lattice's samples carry: 1 / the lattices
+  // that gather (TracerConfig::diffuse_turns); each sample's solid angle is
+  // 4 pi / rays times this (and `roulette` is scaled by it).
+  double share = 1.0;
   // Samples below this power (|a|^2) play Russian roulette (0: none).
   double roulette = 0;
   // Per node, the static faces one convex face hides whole from it

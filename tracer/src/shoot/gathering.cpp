@@ -49,7 +49,7 @@ double roulette_power(const TracerConfig& cfg, const RadioConfig& radio) {
 
 DiffuseGathering::DiffuseGathering(const ShootContext& world, std::uint32_t src, const std::vector<Vec3>& lattice,
                                    const DiffuseTargets& targets, DiffuseBins& out, std::uint64_t& rays,
-                                   const std::vector<Link>& chain)
+                                   const std::vector<Link>& chain, std::uint64_t salt)
     : scene_(world.scene),
       em_(world.em),
       nodes_(world.nodes),
@@ -59,9 +59,10 @@ DiffuseGathering::DiffuseGathering(const ShootContext& world, std::uint32_t src,
       diffuse_out_(&out),
       rays_(rays),
       chain_(chain),
-      d_omega_(4 * kPi / static_cast<double>(lattice.size())),
+      d_omega_(4 * kPi / static_cast<double>(lattice.size()) * targets.share),
       lambda_(world.em.wavelength()),
-      rx_peak_gain_(peak_gain(world.em.radio().antenna.pattern)) {}
+      rx_peak_gain_(peak_gain(world.em.radio().antenna.pattern)),
+      salt_(salt) {}
 
 // The diffuse gathering at one hit: S^2 of the smooth reflection's power is
 // scattered, (1 - K_x) in its polarisation and K_x across it, towards each
@@ -171,7 +172,7 @@ class DiffuseGathering::AtHit {
     double weight = 1;
     if (d_.roulette > 0) {
       weight = roulette_weight(bound_per_gain_ * f * e_ref2_ / (rs * rs) * balance, d_.roulette,
-                               sample_uniform(std::uint64_t{s_.src_} << 32 | s_.r_, s_.hit_no_,
+                               sample_uniform((std::uint64_t{s_.src_} << 32 | s_.r_) ^ s_.salt_, s_.hit_no_,
                                               std::uint64_t{j} << 1 | reverse));
       if (weight == 0) return;
     }
@@ -216,7 +217,7 @@ class DiffuseGathering::AtHit {
     if (d_.roulette > 0) {
       const double e2 = std::norm(e_a[0]) + std::norm(e_a[1]) + std::norm(e_a[2]);
       weight = roulette_weight(bound_per_gain_ * f * e2 / (hit_.t * hit_.t) * balance, d_.roulette,
-                               sample_uniform(std::uint64_t{s_.src_} << 32 | s_.r_, s_.hit_no_,
+                               sample_uniform((std::uint64_t{s_.src_} << 32 | s_.r_) ^ s_.salt_, s_.hit_no_,
                                               std::uint64_t{j} << 1 | 1));
       if (weight == 0) return;
     }

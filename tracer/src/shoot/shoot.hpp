@@ -70,6 +70,12 @@ struct ShootFeeds {
   // The ray count whose spacing sizes the reception spheres (0: the rays'
   // own).
   std::size_t spacing_rays = 0;
+  // Whether the rays propose face sequences near the other nodes (off: a
+  // lattice that only gathers diffuse power).
+  bool propose = true;
+  // Mixed into the diffuse roulette's sample identity: lattices of other
+  // turns draw other numbers for their rays of the same index (0: none).
+  std::uint64_t sample_salt = 0;
 };
 
 // One shooting task's finds: a source's chunk of the lattice.

@@ -177,26 +177,44 @@ ShootPass run_shoot_pass(const SnapshotPlan& plan) {
     hidden = hidden_faces(plan);
     for (auto& t : targets) t.hidden = &hidden;
   }
-  const auto lattice = fibonacci_sphere(cfg.rays_per_source, cfg.lattice_turn);
-  const std::size_t chunk = kShootChunk, chunks = (lattice.size() + chunk - 1) / chunk;
-  std::vector<ShootFinds> tasks(plan.sources.size() * chunks);
+  // Lattice 0 is the frame's own; the others (TracerConfig::diffuse_turns)
+  // only gather diffuse power, every lattice's samples weighted alike.
+  const bool more = plan.ray_diffuse && !cfg.diffuse_turns.empty();
+  std::vector<std::uint64_t> turns{cfg.lattice_turn};
+  if (more) turns.insert(turns.end(), cfg.diffuse_turns.begin(), cfg.diffuse_turns.end());
+  // The roulette's threshold scales with a sample's weight: each lattice's
+  // samples meet the roulette as a lattice of its own would, so the mean of
+  // D lattices has 1 / D of the roulette's variance too.
+  for (auto& t : targets) {
+    t.share = 1.0 / static_cast<double>(turns.size());
+    t.roulette *= t.share;
+  }
+  std::vector<std::vector<Vec3>> lattices;
+  for (auto turn : turns) lattices.push_back(fibonacci_sphere(cfg.rays_per_source, turn));
+  const std::size_t chunk = kShootChunk, chunks = (cfg.rays_per_source + chunk - 1) / chunk;
+  const std::size_t per_lattice = plan.sources.size() * chunks;
+  std::vector<ShootFinds> tasks(per_lattice * lattices.size());
   const ImageFaces* faces = beam_search ? &plan.faces() : nullptr;
   tbb::parallel_for(std::size_t{0}, tasks.size(), [&](std::size_t task) {
-    const auto src = plan.sources[task / chunks];
-    const std::size_t c = task % chunks;
+    const std::size_t l = task / per_lattice, in = task % per_lattice;
+    const auto src = plan.sources[in / chunks];
+    const std::size_t c = in % chunks;
+    const auto& lattice = lattices[l];
     ShootFinds& out = tasks[task];
     TracerConfig local = cfg;
     local.specular = plan.sbr_specular;
     const ShootFeeds feeds{.diffuse = plan.ray_diffuse ? &targets[src] : nullptr,
-                           .faces = faces,
-                           .beams = beam_search,
-                           .beam_pairs = triple_search};
+                           .faces = l == 0 ? faces : nullptr,
+                           .beams = l == 0 && beam_search,
+                           .beam_pairs = l == 0 && triple_search,
+                           .propose = l == 0,
+                           .sample_salt = more ? turns[l] : 0};
     shoot_from({plan.scene, plan.em, local, plan.nodes}, src, lattice, c * chunk,
                std::min(lattice.size(), (c + 1) * chunk), feeds, out);
     if (!plan.sbr_specular) out.found.clear();
   });
   std::vector<std::uint32_t> task_src(tasks.size());
-  for (std::size_t t = 0; t < tasks.size(); ++t) task_src[t] = plan.sources[t / chunks];
+  for (std::size_t t = 0; t < tasks.size(); ++t) task_src[t] = plan.sources[(t % per_lattice) / chunks];
   merge_tasks(plan, tasks, task_src, pass);
   if (faces && plan.sbr_specular && cfg.vehicle_bundles) shoot_vehicle_bundles(plan, *faces, pass);
   pass.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -52,7 +52,7 @@ class Shooter {
     ++rays_;
     if (targets_ && !on_target(st, got, hit)) return;
     const double tseg = got ? hit.t : std::numeric_limits<double>::infinity();
-    if (st.n > 0) reception_.propose(st, chain_, tseg, reception_spacing());
+    if (st.n > 0 && propose_) reception_.propose(st, chain_, tseg, reception_spacing());
     marks_.note_beams(st, chain_, std::min(tseg, 1e30));
     if (marks_.bundle_marks()) marks_.note_bundle_marks(st, chain_, std::min(tseg, 1e30), (*targets_)[r_].spacing);
     if (!got) return;
@@ -143,6 +143,7 @@ class Shooter {
   const std::vector<BundleTarget>* targets_;
   const double spacing_;
   const bool scatter_;
+  const bool propose_;
   std::vector<Link> chain_;
   std::vector<RayState> stack_;
   Reception reception_;
@@ -167,10 +168,11 @@ Shooter::Shooter(const ShootContext& world, std::uint32_t src, const std::vector
       spacing_(std::sqrt(4 * kPi / static_cast<double>(feeds.spacing_rays ? feeds.spacing_rays : lattice.size())) *
                world.cfg.reception_radius_factor),
       scatter_(feeds.diffuse && (!feeds.diffuse->rx.empty() || !feeds.diffuse->rev.empty())),
+      propose_(feeds.propose),
       reception_(world.nodes, src, finds.found),
       marks_(feeds.faces, world.nodes, src, spacing_, feeds.beams ? &finds.beams : nullptr,
              feeds.beam_pairs ? &finds.beam_pairs : nullptr, feeds.bundle_marks ? &finds.beams : nullptr) {
-  if (feeds.diffuse) gathering_.emplace(world, src, lattice, *feeds.diffuse, finds.bins, finds.rays, chain_);
+  if (feeds.diffuse) gathering_.emplace(world, src, lattice, *feeds.diffuse, finds.bins, finds.rays, chain_, feeds.sample_salt);
 }
 
 void Shooter::at_hit(const RayState& st, const Hit& hit) {
