@@ -5,7 +5,7 @@ speed and error against a converged reference, K as an axis.
 For each city (demo: 50 frames from 60 s; ring road: 50 frames from 70 s,
 when ../shared holds it; Bad Hersfeld's recipe from 180 s, when ../shared
 holds it), on the same scene, vehicles and traffic (`raysweep run CITY
---until sweep`, coherence off, so that every pair is searched every frame):
+--until sweep`, the city's own [sweep] settings otherwise):
 
   R     the converged reference: 49,152 rays a source, vehicle bundles of
         128 (8x the default's), itself on turned lattices with K = 4;
@@ -47,7 +47,7 @@ import shutil
 import h5py
 import numpy as np
 
-from coherence_bench import sweep
+from sweep_runs import sweep
 from spike_bench import selected_cases, spikes
 REFERENCE = ["tracer.rays_per_source=49152", "tracer.vehicle_bundle_rays=128", "sweep.lattice_frames=4"]
 OTHER_TURN = "tracer.lattice_turn=12345"
@@ -152,7 +152,7 @@ def main():
     rows, noise_rows = [], []
     for case, city, begin in selected_cases(args.cases):
         out = os.path.join(args.out, case)
-        base = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + args.frames / 10 - 0.05}", "sweep.coherence=false"]
+        base = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + args.frames / 10 - 0.05}"]
         if args.no_diffuse:
             base.append("tracer.diffuse=false")
         _, ref = run(rs, city, out, base + REFERENCE, "R")

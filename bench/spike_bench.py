@@ -12,8 +12,7 @@ a jump that nothing in the geometry's labels explains.
 For each city (demo: frames from 60 s; ring road: from 70 s, when
 ../shared holds it; Bad Hersfeld's recipe from 180 s, when ../shared holds it)
 the sweep runs with each setting on the same scene, vehicles and traffic
-(`raysweep run CITY --until sweep`, coherence off so that every frame is
-searched), and the bench reports the spikes (all, upwards), the link-frames
+(`raysweep run CITY --until sweep`, the city's own [sweep] settings), and the bench reports the spikes (all, upwards), the link-frames
 they are counted over, the sweep's tracing seconds per frame and their ratio.
 
     /usr/bin/python3 bench/spike_bench.py [--build build] [--out /tmp/raysweep-spikes]
@@ -28,7 +27,7 @@ import os
 import h5py
 import numpy as np
 
-from coherence_bench import DEMO, RING, RING_SUMO, floor_of, sweep
+from sweep_runs import DEMO, RING, RING_SUMO, floor_of, sweep
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 BH = os.path.join(ROOT, "datasets", "badhersfeld", "city.toml")
@@ -86,7 +85,7 @@ def main():
         n = frames.get(case, 50)
         out = os.path.join(args.out, case)
         for mode in args.modes.split(","):
-            sets = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + n / 10 - 0.05}", "sweep.coherence=false",
+            sets = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + n / 10 - 0.05}",
                     f'tracer.facet_reflection="{mode}"']
             r = sweep(rs, city, out, sets)
             count, up, total = spikes(os.path.join(out, "dataset.h5"))

@@ -30,8 +30,8 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DEMO = os.path.join(ROOT, "datasets", "demo", "city.toml")
 LEVELS = ("links", "cfr", "paths", "full")
-SUMMARY = re.compile(r"swept (\d+) frames .*?, (\d+) pair-channels .*? in ([0-9.]+) s \(([0-9.]+) s tracing, "
-                     r"[0-9.]+ s of it re-solving; outside tracing ([0-9.]+) s records, ([0-9.]+) s blocks, "
+SUMMARY = re.compile(r"swept (\d+) frames .*?, (\d+) pair-channels .*? in ([0-9.]+) s \(([0-9.]+) s tracing; "
+                     r"outside tracing ([0-9.]+) s records, ([0-9.]+) s blocks, "
                      r"([0-9.]+) s writing\); .* at level (\w+) \(([0-9.]+) bytes per pair-frame\)")
 
 

@@ -292,15 +292,12 @@ class BlockStore {
     const json st = {{"frames", s.frames - before_.frames},
                      {"links", s.links - before_.links},
                      {"traced_links", s.traced_links - before_.traced_links},
-                     {"searched_links", s.searched_links - before_.searched_links},
-                     {"recall_broken", s.recall_broken - before_.recall_broken},
                      {"carried_sequences", s.carried_solved - before_.carried_solved},
                      {"carried_paths", s.carried - before_.carried},
                      {"vehicle_updates", s.vehicle_updates - before_.vehicle_updates},
                      {"updates_deferred", s.updates_deferred - before_.updates_deferred},
                      {"rays", s.rays - before_.rays},
                      {"trace_seconds", s.trace_seconds - before_.trace_seconds},
-                     {"resolve_seconds", s.resolve_seconds - before_.resolve_seconds},
                      {"record_seconds", record_seconds_},
                      {"block_seconds", block_seconds_},
                      {"enclosed_antenna_frames", s.enclosed - before_.enclosed},
@@ -436,12 +433,10 @@ generators::DatasetHeader dataset_header(const SweepRunId& id, const TraceSettin
 json assemble_dataset(const SweepArgs& args, const generators::DatasetHeader& header, std::uint64_t last_block,
                       const BlockStore& store, const NodeTable& nodes, const generators::Sweep& sweep) {
   StagedFile staged{fs::path(args.out)};
-  json totals = {{"frames", 0},          {"links", 0},           {"traced_links", 0},
-                 {"searched_links", 0},  {"recall_broken", 0},   {"carried_sequences", 0},
-                 {"carried_paths", 0},   {"vehicle_updates", 0},
-                 {"updates_deferred", 0}, {"rays", 0},           {"trace_seconds", 0.0},
-                 {"resolve_seconds", 0.0}, {"record_seconds", 0.0}, {"block_seconds", 0.0},
-                 {"enclosed_antenna_frames", 0}};
+  json totals = {{"frames", 0},           {"links", 0},          {"traced_links", 0},
+                 {"carried_sequences", 0}, {"carried_paths", 0},  {"vehicle_updates", 0},
+                 {"updates_deferred", 0},  {"rays", 0},           {"trace_seconds", 0.0},
+                 {"record_seconds", 0.0},  {"block_seconds", 0.0}, {"enclosed_antenna_frames", 0}};
   std::set<std::uint32_t> enclosed;
   const auto t0 = std::chrono::steady_clock::now();
   {
@@ -506,24 +501,25 @@ json sweep_summary(const SweepArgs& args, const json& totals, const SweepProgres
   summary["diffuse_frames"] = options.diffuse_frames;
   summary["store"] = generators::store_level_name(cfg.store);
   summary["paths_top_k"] = cfg.paths_top_k;
-  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, {} of them searched, cache hit "
-               "{:.1f}%) in {:.1f} s ({:.1f} s tracing, {:.1f} s of it re-solving; outside tracing {:.1f} s records, "
-               "{:.1f} s blocks, {:.1f} s writing); {} at level {} ({:.0f} bytes per pair-frame)",
+  spdlog::info("swept {} frames ({} resumed blocks), {} pair-channels ({} traced, cache hit {:.1f}%) in {:.1f} s "
+               "({:.1f} s tracing; outside tracing {:.1f} s records, {:.1f} s blocks, {:.1f} s writing); {} at level "
+               "{} ({:.0f} bytes per pair-frame)",
                totals["frames"].get<std::uint64_t>(), p.blocks_resumed, links, traced,
-               totals["searched_links"].get<std::uint64_t>(), 100 * summary["cache_hit_ratio"].get<double>(), wall,
-               totals["trace_seconds"].get<double>(), totals["resolve_seconds"].get<double>(),
+               100 * summary["cache_hit_ratio"].get<double>(), wall, totals["trace_seconds"].get<double>(),
                totals["record_seconds"].get<double>(), totals["block_seconds"].get<double>(),
                totals["write_seconds"].get<double>(), args.out, summary["store"].get<std::string>(),
                summary["bytes_per_link"].get<double>());
   warn_enclosed(totals);
-  if (options.lattice_frames > 1) {
-    const auto searched = std::max<std::uint64_t>(1, totals["searched_links"].get<std::uint64_t>());
+  if (options.coherence && options.lattice_frames > 1) {
+    const auto frames = std::max<std::uint64_t>(1, totals["frames"].get<std::uint64_t>());
+    const auto pairs = std::max<std::uint64_t>(1, traced);
     const auto solved = totals["carried_sequences"].get<std::uint64_t>();
-    const auto kept = totals["carried_paths"].get<std::uint64_t>();
-    spdlog::info("turned lattices over {} frames: {} sequences carried into searches ({:.1f} a searched pair), {} "
-                 "paths and near misses of them that the frame's own rays had not proposed ({:.2f} a searched pair)",
-                 options.lattice_frames, solved, static_cast<double>(solved) / searched, kept,
-                 static_cast<double>(kept) / searched);
+    const auto fresh = totals["carried_paths"].get<std::uint64_t>();
+    spdlog::info("coherence over {} frames: {:.0f} sequences a frame kept from the frames before and re-solved "
+                 "({:.1f} a traced pair), {:.1f} a frame of them new paths or near misses that the frame's own rays "
+                 "had not proposed ({:.2f} a traced pair)",
+                 options.lattice_frames, static_cast<double>(solved) / frames, static_cast<double>(solved) / pairs,
+                 static_cast<double>(fresh) / frames, static_cast<double>(fresh) / pairs);
   }
   return summary;
 }

@@ -69,11 +69,8 @@ Sweep::Sweep(tracer::TraceScene& scene, const tracer::TracerConfig& tracer, cons
              const SweepOptions& options, std::vector<SweepRsu> rsus)
     : scene_(scene), tracer_(tracer), radio_(radio), options_(options), rsus_(std::move(rsus)) {
   if (options_.block_frames == 0) throw std::invalid_argument("sweep: block_frames must be at least 1");
-  if (!(options_.d0_m >= 0) || !(options_.coherence_time_s >= 0) || !(options_.cache_margin_m >= 0) ||
-      !(options_.coherence_margin_m >= 0) || !(options_.coherence_volatile_share >= 0))
-    throw std::invalid_argument(
-        "sweep: d0, coherence time, cache margin, coherence margin and volatile share must be >= 0");
-  if (options_.coherence_frames == 0) throw std::invalid_argument("sweep: coherence_frames must be at least 1");
+  if (!(options_.d0_m >= 0) || !(options_.coherence_time_s >= 0) || !(options_.cache_margin_m >= 0))
+    throw std::invalid_argument("sweep: d0, coherence time and cache margin must be >= 0");
   if (options_.lattice_frames == 0) throw std::invalid_argument("sweep: lattice_frames must be at least 1");
   if (options_.diffuse_frames == 0) throw std::invalid_argument("sweep: diffuse_frames must be at least 1");
   std::sort(rsus_.begin(), rsus_.end(), [](const SweepRsu& a, const SweepRsu& b) { return a.node < b.node; });
@@ -270,90 +267,22 @@ Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antenna
   return c;
 }
 
-// The pairs of `todo` that can be re-solved from their recall, taken out of
-// `todo` (which keeps the rest in pair order): the rule on the recall's
-// paths (sweep.hpp), searched less than coherence_frames frames ago, both
-// ends within coherence_margin_m of where they were then, and no vehicle
-// new to the sweep in the pair's strong ellipsoid.
-std::vector<Sweep::NodePair> Sweep::coherent_pairs(std::uint64_t frame, const Antennas& ant, const Motion& motion,
-                                                   std::vector<NodePair>& todo) const {
-  if (!options_.coherence) return {};
-  std::vector<NodePair> coherent, search;
-  for (const auto& pair : todo) {
-    auto it = cache_.find(pair_key(ant.node_of[pair.first], ant.node_of[pair.second]));
-    const tracer::PairRecall* rc = it == cache_.end() ? nullptr : it->second.recall.get();
-    bool ok = rc && rc->complete && rc->volatile_share <= options_.coherence_volatile_share &&
-              (!options_.coherence_clear_zone_only || rc->fresnel_class == tracer::LosClass::LOS) &&
-              rc->direct_share >= options_.coherence_direct_share &&
-              frame - it->second.searched_frame < options_.coherence_frames &&
-              norm(ant.nodes[pair.first].position - rc->a.position) <= options_.coherence_margin_m &&
-              norm(ant.nodes[pair.second].position - rc->b.position) <= options_.coherence_margin_m;
-    // A vehicle new to the sweep inside the pair's strong ellipsoid may
-    // bring a path as strong as its best.
-    for (std::size_t s = 0; ok && s < motion.arrived.size(); ++s) {
-      const Sphere& m = motion.arrived[s];
-      const CachedLink& c = it->second;
-      ok = norm(m.c - c.a) + norm(m.c - c.b) - 2 * m.r > c.reach;
-    }
-    (ok ? coherent : search).push_back(pair);
-  }
-  todo = std::move(search);
-  return coherent;
-}
-
-// The pairs of `todo`: re-solved where their recall allows and still holds,
-// searched otherwise (searched[p]). The result and `todo` in pair order.
-tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, const Motion& motion,
-                                   std::vector<NodePair>& todo, std::vector<unsigned char>& searched) {
-  const std::vector<NodePair> coherent = coherent_pairs(frame, ant, motion, todo);
-  tracer::Snapshot resolved;
-  std::vector<unsigned char> intact;
-  if (!coherent.empty()) {
-    std::vector<tracer::PairRecall*> recalls;
-    for (const auto& [i, j] : coherent)
-      recalls.push_back(cache_.at(pair_key(ant.node_of[i], ant.node_of[j])).recall.get());
-    const auto t0 = std::chrono::steady_clock::now();
-    resolved = tracer::resolve_pairs(scene_, ant.nodes, coherent, recalls, tracer_, radio_,
-                                     options_.coherence_volatile_share, intact);
-    stats_.resolve_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  }
-  std::vector<NodePair> search = todo;
-  for (std::size_t p = 0; p < coherent.size(); ++p)
-    if (!intact[p]) search.push_back(coherent[p]);
-  stats_.recall_broken += search.size() - todo.size();
-  std::sort(search.begin(), search.end());
-  tracer::Snapshot traced;
+// The pairs of `todo` traced, in pair order: with coherence, each frame's
+// rays on the frame's turned lattice and every pair also solving the
+// sequences carried from its last lattice_frames frames; with diffuse_frames,
+// the frames before's lattices gathering diffuse power too.
+tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, const std::vector<NodePair>& todo) {
   tracer::TracerConfig turned = tracer_;
   // The diffuse gathering also shoots the lattices of the frames before
   // (their turns depend on the frame index alone: no state to carry).
   for (std::uint32_t k = 1; k < options_.diffuse_frames; ++k)
     turned.diffuse_turns.push_back(frame_lattice_turn(tracer_.lattice_turn, frame - k));
-  if (options_.lattice_frames > 1) {
-    turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
-    const auto carried = carried_sequences(frame, ant, search);
-    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_, carried);
-    for (std::size_t p = 0; p < search.size(); ++p) keep_found(frame, ant, search[p], traced.pairs[p], carried[p]);
-  } else {
-    traced = tracer::trace_pairs(scene_, ant.nodes, search, turned, radio_);
-  }
-  stats_.searched_links += search.size();
-
-  // Merge the two in pair order.
-  tracer::Snapshot out;
-  out.stats = traced.stats;
-  out.stats.rays += resolved.stats.rays;
-  todo.clear();
-  searched.clear();
-  std::size_t x = 0, y = 0;
-  while (true) {
-    while (x < coherent.size() && !intact[x]) ++x;
-    const bool from_coherent = x < coherent.size() && (y >= search.size() || coherent[x] < search[y]);
-    if (!from_coherent && y >= search.size()) break;
-    todo.push_back(from_coherent ? coherent[x] : search[y]);
-    out.pairs.push_back(std::move(from_coherent ? resolved.pairs[x++] : traced.pairs[y++]));
-    searched.push_back(!from_coherent);
-  }
-  return out;
+  if (!carries()) return tracer::trace_pairs(scene_, ant.nodes, todo, turned, radio_);
+  turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
+  const auto carried = carried_sequences(frame, ant, todo);
+  tracer::Snapshot traced = tracer::trace_pairs(scene_, ant.nodes, todo, turned, radio_, carried);
+  for (std::size_t p = 0; p < todo.size(); ++p) keep_found(frame, ant, todo[p], traced.pairs[p], carried[p]);
+  return traced;
 }
 
 // Per pair of `search`, its kept sequences (keep_found) stamped within the
@@ -531,22 +460,12 @@ FrameRecord Sweep::step(std::uint64_t frame_index, double time_s, std::vector<Sw
     if (needs_trace(ant.node_of[i], ant.node_of[j], motion)) todo.emplace_back(i, j);
 
   const auto t0 = std::chrono::steady_clock::now();
-  std::vector<unsigned char> searched;
-  const tracer::Snapshot snap = trace_todo(frame_index, ant, motion, todo, searched);
+  const tracer::Snapshot snap = trace_todo(frame_index, ant, todo);
   stats_.trace_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   stats_.rays += snap.stats.rays;
   for (std::size_t p = 0; p < todo.size(); ++p) {
     CachedLink c = cache_link(snap.pairs[p], ant, todo[p]);
-    const std::uint64_t key = pair_key(c.link.tx, c.link.rx);
-    if (options_.coherence && searched[p]) {
-      c.recall = std::make_shared<tracer::PairRecall>(tracer::make_recall(scene_, ant.nodes, snap.pairs[p]));
-      c.searched_frame = frame_index;
-    } else if (options_.coherence) {
-      const CachedLink& before = cache_.at(key);
-      c.recall = before.recall;
-      c.searched_frame = before.searched_frame;
-    }
-    cache_[key] = std::move(c);
+    cache_[pair_key(c.link.tx, c.link.rx)] = std::move(c);
   }
 
   FrameRecord frame;

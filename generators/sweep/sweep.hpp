@@ -19,36 +19,23 @@
 //   outside the strong ellipsoid, which is longer, hence weaker in spreading
 //   loss, than the strongest path it has (measured by `raysweep` benchmarks).
 //
-// Frame-to-frame coherence (`coherence`, off by default): a pair that must be
-// computed again is not searched from scratch but re-solved from the paths
-// its last search found (tracer/coherence.hpp: the same face sequences and
-// edges solved exactly at the new positions, the labels and the direct path
-// afresh). A pair is re-solved only while the paths that traffic makes and
-// unmakes from frame to frame (reflections on vehicles, diffuse records)
-// carry a small share of its power (`coherence_volatile_share`): a LoS
-// pair, a pair dominated by the city's walls. It is searched again when its
-// recall no longer holds (a label changed, recalled paths carrying more than
-// that share vanished, it came into or went out of range), when
-// `coherence_frames` frames have passed since its last search,
-// when either end has moved more than `coherence_margin_m` since then, and
-// when a vehicle new to the sweep arrives inside its strong ellipsoid.
-// What that can miss, and for how long, is in docs/tracer.md.
-//
-// Turned lattices (`lattice_frames` K > 1; 4 by default): every frame's
-// search shoots its lattice (and its vehicle bundles) turned by a rotation
-// drawn from the frame index (tracer.lattice_turn), and a pair searched in a
-// frame also solves the sampled sequences (the rays' and beams' proposals)
-// that gave it a path or a near miss in its K frames before, by the image
-// method and exact visibility: a path one lattice found stays while it holds
-// and K frames after, whatever the later lattices sample, and one that no
-// longer holds adds nothing. Over static scenery a frame thus has the paths
-// of every lattice so far; under traffic, of the last K frames' at least.
+// Coherence across frames (`coherence`, on by default; `lattice_frames` K,
+// 4 by default): every frame's search shoots its lattice (and its vehicle
+// bundles) turned by a rotation drawn from the frame index
+// (tracer.lattice_turn), and every pair traced in a frame also solves the
+// sampled sequences (the rays' and beams' proposals) that gave it a path or
+// a near miss in its K frames before, by the image method and exact
+// visibility: a path one lattice found stays while it holds and K frames
+// after, whatever the later lattices sample, and one that no longer holds
+// adds nothing. Over static scenery a frame thus has the paths of every
+// lattice so far; under traffic, of the last K frames' at least. Off (or
+// K = 1): every frame searched from scratch on the one unturned lattice.
 // Diffuse records are the frame's own lattice's, and with `diffuse_frames`
 // D > 1 the mean over the lattices of the frame and its D - 1 frames
 // before, all shot from this frame's positions: the diffuse estimate has D
 // times the samples, and consecutive frames share D - 1 lattices of them.
 //
-// The cache, the update rule, the coherence and the carried sequences restart at every block of
+// The cache, the update rule and the carried sequences restart at every block of
 // `block_frames` frames (every vehicle placed afresh, every pair traced), so
 // each block depends only on its own frames: a resumed run or a shard
 // commits the same blocks as an uninterrupted one.
@@ -64,7 +51,6 @@
 
 #include "generators/dataset/dataset.hpp"
 #include "tracer/channel.hpp"
-#include "tracer/coherence.hpp"
 #include "tracer/solver.hpp"
 
 namespace raysweep::generators {
@@ -79,21 +65,12 @@ struct SweepOptions {
   CacheMode cache = CacheMode::per_pair;
   double cache_margin_m = 0.5;
   std::uint32_t block_frames = 50;
-  bool coherence = false;  // off by default: see docs/tracer.md (it does not pay yet)
-  std::uint32_t coherence_frames = 10;  // a pair is searched at least this often (frames)
-  double coherence_margin_m = 8;        // or once an end moved this far since its last search
-  // A pair is re-solved only while the paths a search may find anew as
-  // traffic moves (on vehicles, diffuse) carried at most this share of its
-  // power at its last search, and while recalled paths that vanished (off
-  // their faces or edges) carry at most this share.
-  double coherence_volatile_share = 0.05;
-  // And only while its direct path carried at least this share, and (with
-  // coherence_clear_zone_only) no obstacle entered its first Fresnel zone:
-  // a strong direct path outweighs the paths that appear between searches.
-  double coherence_direct_share = 0.5;
-  bool coherence_clear_zone_only = true;
-  // Turned lattices: a searched pair also solves the sampled sequences that
-  // gave it a path in its last lattice_frames frames (1: none, every frame the same lattice).
+  // Samples that add up across frames (turned lattices, carried sequences);
+  // false: every frame from scratch on one unturned lattice.
+  bool coherence = true;
+  // With coherence: a traced pair also solves the sampled sequences that
+  // gave it a path in its last lattice_frames frames (1: none, every frame
+  // the same lattice).
   std::uint32_t lattice_frames = 4;
   // Diffuse samples shared by consecutive frames: a frame's diffuse
   // gathering shoots its own lattice and those of its diffuse_frames - 1
@@ -129,9 +106,7 @@ struct SweepStats {
   std::uint64_t frames = 0;
   std::uint64_t links = 0;           // pair-frames written
   std::uint64_t traced_links = 0;    // pair-frames traced (the rest came from the cache)
-  std::uint64_t searched_links = 0;  // of those, searched from scratch (the rest re-solved coherently)
-  std::uint64_t recall_broken = 0;   // re-solves whose recall no longer held (then searched)
-  std::uint64_t carried_solved = 0;  // turned lattices: carried sequences solved in searches
+  std::uint64_t carried_solved = 0;  // coherence: carried sequences re-solved in the frames' traces
   std::uint64_t carried = 0;         // of them, paths (and near misses) that this frame's rays had not proposed
   std::uint64_t vehicle_updates = 0; // vehicle meshes moved (incl. first placements)
   std::uint64_t updates_deferred = 0;  // vehicle-frames that moved but stayed under the update threshold
@@ -143,7 +118,6 @@ struct SweepStats {
   std::uint64_t enclosed = 0;
   std::vector<std::uint32_t> enclosed_nodes;
   double trace_seconds = 0;
-  double resolve_seconds = 0;  // of which the coherent re-solves
   double hit_ratio() const { return links ? 1.0 - static_cast<double>(traced_links) / links : 0.0; }
 };
 
@@ -177,9 +151,6 @@ class Sweep {
     std::vector<tracer::Vec3> points;         // each path's polyline a, interactions..., b
     std::vector<std::uint32_t> path_points;   // polyline sizes
     tracer::Vec3 lo{0, 0, 0}, hi{0, 0, 0};    // box around every point
-    // Coherence: what the pair's last search found, and when.
-    std::shared_ptr<tracer::PairRecall> recall;
-    std::uint64_t searched_frame = 0;
   };
   // step()'s phases (the two structs are defined in sweep.cpp).
   struct Motion;
@@ -192,10 +163,8 @@ class Sweep {
   bool needs_trace(std::uint32_t node_a, std::uint32_t node_b, const Motion& motion) const;
   bool near_cached_paths(const CachedLink& c, const Motion& motion) const;
   CachedLink cache_link(const tracer::PairResult& res, const Antennas& antennas, NodePair pair) const;
-  std::vector<NodePair> coherent_pairs(std::uint64_t frame, const Antennas& ant, const Motion& motion,
-                                       std::vector<NodePair>& todo) const;
-  tracer::Snapshot trace_todo(std::uint64_t frame, const Antennas& ant, const Motion& motion,
-                              std::vector<NodePair>& todo, std::vector<unsigned char>& searched);
+  bool carries() const { return options_.coherence && options_.lattice_frames > 1; }
+  tracer::Snapshot trace_todo(std::uint64_t frame, const Antennas& ant, const std::vector<NodePair>& todo);
   void append_nodes(const std::vector<SweepVehicle>& vehicles, FrameRecord& frame) const;
   void append_links(const std::vector<NodePair>& all, const std::vector<NodePair>& traced,
                     const std::vector<std::uint32_t>& node_of, const std::vector<char>& inside, FrameRecord& frame);

@@ -228,21 +228,11 @@ const Table<SweepSettings>& sweep_table() {
     t.key("block_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.block_frames), "",
           "frames per committed block (resume granularity; caches restart at each block)");
     t.key("coherence", boolean(), FIELD(options.coherence), "",
-          "re-solve each pair's last paths exactly instead of searching every frame (false: every frame from scratch)");
-    t.key("coherence_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.coherence_frames), "",
-          "coherence: a pair is searched from scratch at least every this many frames");
-    t.key("coherence_margin_m", number(at_least(0)), FIELD(options.coherence_margin_m), "m",
-          "coherence: or once either end moved this far since its last search");
-    t.key("coherence_volatile_share", number(at_least(0)), FIELD(options.coherence_volatile_share), "",
-          "coherence: re-solve a pair only while its paths on vehicles and diffuse records carry at most this "
-          "share of its power");
-    t.key("coherence_direct_share", number(at_least(0)), FIELD(options.coherence_direct_share), "",
-          "coherence: and only while its direct path carries at least this share of its power");
-    t.key("coherence_clear_zone_only", boolean(), FIELD(options.coherence_clear_zone_only), "",
-          "coherence: and only while nothing is in the direct path's first Fresnel zone");
+          "samples that add up across frames: each frame's rays on a lattice turned by the frame, and every traced "
+          "pair also solving the sampled sequences that gave it a path in its last lattice_frames frames (false: "
+          "every frame from scratch on one unturned lattice)");
     t.key("lattice_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.lattice_frames), "",
-          "turned lattices: each frame's rays on a lattice turned by the frame, and a searched pair also solves "
-          "the sampled sequences that gave it a path in its last lattice_frames frames (1: off)");
+          "coherence: the frames whose sampled sequences a frame carries (1: none, one unturned lattice)");
     t.key("diffuse_frames", integer<std::uint32_t>(at_least(1)), FIELD(options.diffuse_frames), "",
           "diffuse samples shared by consecutive frames: a frame's diffuse gathering also shoots the lattices of "
           "its diffuse_frames - 1 frames before, all weighted alike (1: its own lattice only)");

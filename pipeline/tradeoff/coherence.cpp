@@ -54,9 +54,7 @@ CoherenceWindowResult compare_coherence(tracer::TraceScene& scene, const tracer:
   r.frames = frames.size();
   r.trace_off_s = off.stats.trace_seconds;
   r.trace_on_s = on.stats.trace_seconds;
-  r.resolve_on_s = on.stats.resolve_seconds;
-  r.traced_on = on.stats.traced_links;
-  r.searched_on = on.stats.searched_links;
+  r.carried_on = on.stats.carried_solved;
   std::vector<double> err;
   std::size_t los = 0, fresnel = 0;
   for (std::size_t k = 0; k < frames.size(); ++k) {
@@ -88,11 +86,9 @@ nlohmann::json coherence_json(const CoherenceWindowResult& r) {
   auto num = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };
   return {{"frames", r.frames},
           {"pair_frames", r.pair_frames},
-          {"traced_pair_frames_on", r.traced_on},
-          {"searched_pair_frames_on", r.searched_on},
+          {"carried_sequences_on", r.carried_on},
           {"trace_s_off", r.trace_off_s},
           {"trace_s_on", r.trace_on_s},
-          {"resolve_s_on", r.resolve_on_s},
           {"speedup", num(r.speedup())},
           {"los_agreement", num(r.los_agreement)},
           {"fresnel_agreement", num(r.fresnel_agreement)},

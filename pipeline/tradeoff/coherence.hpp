@@ -1,10 +1,10 @@
 // `raysweep tradeoff`'s coherence toggle: a short window of consecutive
 // frames swept twice through generators::Sweep, with [sweep] coherence off
-// (every traced pair searched from scratch: the reference) and on, and the
-// coherent sweep's cost and error against the reference. The error is the
-// budget of docs/tracer.md: LoS and Fresnel class agreement and the
-// per-pair-frame wideband gain difference (gain_incoherent_db, both floored
-// at the sensitivity floor radio.sensitivity_dbm - radio.tx_power_dbm).
+// (every frame from scratch on one lattice) and on (turned lattices, the
+// sequences of the frames before carried), and what carrying costs and
+// changes: LoS and Fresnel class agreement and the per-pair-frame wideband
+// gain difference (gain_incoherent_db, both floored at the sensitivity
+// floor radio.sensitivity_dbm - radio.tx_power_dbm).
 #pragma once
 
 #include <cstddef>
@@ -23,8 +23,8 @@ struct CoherenceFrame {
 
 struct CoherenceWindowResult {
   std::size_t frames = 0, pair_frames = 0;
-  std::size_t traced_on = 0, searched_on = 0;  // pair-frames the coherent sweep traced, and searched of those
-  double trace_off_s = 0, trace_on_s = 0, resolve_on_s = 0;
+  std::size_t carried_on = 0;  // sequences the coherent sweep carried into its frames' traces
+  double trace_off_s = 0, trace_on_s = 0;
   double los_agreement = 0, fresnel_agreement = 0;
   double err_p50_db = 0, err_p99_db = 0, err_max_db = 0;
   bool same_links = true;  // both sweeps wrote the same pairs in every frame

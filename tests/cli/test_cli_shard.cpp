@@ -72,13 +72,13 @@ std::string sweep_args(const fs::path& config) {
          " --config " + config.string();
 }
 
-// A coherent sweep that re-solves every pair it can (frame-to-frame
-// coherence restarts with each block, the unit shards share).
+// A coherent sweep whose frames carry the sequences of the two before and
+// share their diffuse lattices (both restart with each block, the unit
+// shards share).
 // Store level paths with each link's 4 strongest paths: merges and resumes keep it.
 void write_sweep_config(const fs::path& p, int max_depth = 2) {
   write_text(p, "[sweep]\nbegin_s = 25\nend_s = 27.95\nblock_frames = 5\ncoherence = true\n"
-                "store = \"paths\"\npaths_top_k = 4\n"
-                "coherence_volatile_share = 1\ncoherence_direct_share = 0\ncoherence_clear_zone_only = false\n"
+                "store = \"paths\"\npaths_top_k = 4\nlattice_frames = 3\ndiffuse_frames = 2\n"
                 "[tracer]\nrays_per_source = 1024\nmax_depth = " +
                     std::to_string(max_depth) + "\n");
 }

@@ -97,14 +97,14 @@ TEST(CliSweep, DatasetValidatesAndThePythonReaderLoadsIt) {
   EXPECT_EQ(r.output.substr(0, 3), "20 ");
 }
 
-// A coherent sweep (every pair it can re-solved from its last search).
+// A coherent sweep (sequences carried from the frames before, diffuse
+// lattices shared).
 TEST(CliSweep, ResumeAfterKillEqualsUninterruptedAndThreadsDoNotMatter) {
   auto dir = scratch_dir("sweep_resume");
   fs::create_directories(dir / "a");
   fs::create_directories(dir / "b");
   write_config(dir / "c.toml", "begin_s = 30\nend_s = 32.95\nblock_frames = 6\ncache = \"per_pair\"\ncoherence = true\n"
-                               "coherence_volatile_share = 1\ncoherence_direct_share = 0\n"
-                               "coherence_clear_zone_only = false");
+                               "lattice_frames = 3\ndiffuse_frames = 2");
   const std::string cmd = sweep_args(dir / "c.toml") + " --out out.h5";
   // Uninterrupted, one thread.
   auto r = run_command("cd " + (dir / "a").string() + " && " + RAYSWEEP_BINARY + " -q -j 1 " + cmd);

@@ -269,7 +269,7 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
     EXPECT_LE(coh[k].get<double>(), 1) << k;
   }
   EXPECT_LE(coh["gain_diff_p99_db"].get<double>(), coh["gain_diff_max_db"].get<double>());
-  EXPECT_LE(coh["searched_pair_frames_on"].get<int>(), coh["traced_pair_frames_on"].get<int>());
+  EXPECT_GT(coh["carried_sequences_on"].get<int>(), 0) << "the coherent sweep carried nothing";
   EXPECT_NE(r.output.find("coherence over 4 frames"), std::string::npos) << r.output;
   EXPECT_EQ(prov["config"]["tracer"]["rays_per_source"], 1024);
   // Nothing left over from the atomic writes.
@@ -285,7 +285,7 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   auto r = run_raysweep("tradeoff --scene " + in.scene.string() + " --fcd " + in.fcd.string() + " --config " +
                         in.config.string() + " --rays 512 --depths 0,1 --simplify 0.1,1 --snapshots 1 "
                         "--reference-rays 2048 --reference-depth 2 --no-chart --out " + out.string() +
-                        " --coherence-window 3 --set sweep.coherence_frames=1");
+                        " --coherence-window 3 --set sweep.lattice_frames=1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
@@ -301,12 +301,12 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   EXPECT_FALSE(fs::exists(out / "tradeoff.png"));
   const json doc = json::parse(read_text(out / "tradeoff.json"));
   EXPECT_EQ(doc["snapshots"].size(), 1u);
-  // coherence_frames = 1: the coherent sweep searches every pair it traces
-  // in every frame, so it must equal the reference to the bit.
+  // lattice_frames = 1: the coherent sweep carries nothing and shoots the
+  // one lattice, so it must equal the from-scratch sweep to the bit.
   const json& coh = doc["coherence"];
   EXPECT_EQ(coh["frames"], 3);
   EXPECT_GT(coh["pair_frames"].get<int>(), 0);
-  EXPECT_EQ(coh["searched_pair_frames_on"], coh["traced_pair_frames_on"]);
+  EXPECT_EQ(coh["carried_sequences_on"], 0);
   EXPECT_EQ(coh["gain_diff_max_db"].get<double>(), 0.0);
   EXPECT_EQ(coh["los_agreement"].get<double>(), 1.0);
   EXPECT_EQ(coh["fresnel_agreement"].get<double>(), 1.0);

@@ -153,7 +153,6 @@ TEST(Sweep, PerPairCacheKeepsExactlyThePathsFreshTracingFinds) {
   cached_opt.cache = CacheMode::per_pair;
   fresh_opt.cache = CacheMode::none;
   cached_opt.block_frames = fresh_opt.block_frames = 1000;
-  cached_opt.coherence = false;  // exact retracing of what the cache does not keep (coherence: test_coherence)
   const std::vector<generators::SweepRsu> rsus = {{4, {10, 8, 6}}};
   generators::Sweep cached(c.scene, tracer_config(), {}, cached_opt, rsus);
   std::size_t reused = 0, reused_with_new_paths = 0;
@@ -312,7 +311,6 @@ TEST(Sweep, OutOfRangeLinksAndThresholdDropsAreRecorded) {
   generators::SweepOptions opt;
   opt.lattice_frames = 1;  // one lattice (turned lattices: test_turned_lattices)
   opt.cache = CacheMode::none;
-  opt.coherence = false;  // every frame searched: its drops counted afresh
   tracer::RadioConfig radio;
   radio.sensitivity_dbm = -44;  // free-space reach ~40 m with 30 dBm and the 6 dB margin
   const double range = tracer::max_range_m(tracer_config(), radio);

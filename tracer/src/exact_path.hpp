@@ -14,8 +14,8 @@ namespace raysweep::tracer {
 // (the direct path that the knife-edge model attenuates instead).
 // `blocked` (optional): 1 when the path exists geometrically but an opaque
 // static face is the first thing found blocking a leg, 2 when a vehicle's
-// is (a path that traffic can unblock; tracer/coherence.hpp keeps such near
-// misses), 0 otherwise.
+// is (a path that traffic can unblock: PairResult::near_misses, which a
+// coherent sweep carries), 0 otherwise.
 std::optional<Path> exact_path(const TraceScene& scene, const Electromagnetics& em, const TracerConfig& config,
                                const Node& from, const Node& to, const std::vector<FaceRef>& faces, bool* over_cap,
                                std::uint64_t* rays, bool through_vehicles, int* blocked = nullptr);

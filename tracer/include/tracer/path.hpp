@@ -36,7 +36,8 @@ struct FaceRef {
 };
 
 // What produced a path, so that a later frame can solve the same path again
-// at new positions (tracer/coherence.hpp) without searching for it.
+// at new positions (a coherent sweep's carried sequences) without searching
+// for it.
 struct PathOrigin {
   enum class Kind : std::uint8_t { unknown, direct, sequence, diffraction, vehicle_edge, diffuse };
   Kind kind = Kind::unknown;

@@ -53,8 +53,8 @@ struct PairResult {
   // to the direct path (TracerConfig::vehicle_diffraction); 0 when none.
   double vehicle_loss_db = 0;
   std::vector<Path> paths;              // sorted by delay
-  // Candidate face sequences that only a vehicle blocks (their recall lets
-  // a coherent sweep see the path return: tracer/coherence.hpp).
+  // Candidate face sequences that only a vehicle blocks (carried, they let a
+  // coherent sweep see the path return: generators/sweep).
   std::vector<std::vector<FaceRef>> near_misses;
   // The face sequences this trace's rays and beams proposed (the search's
   // sample, not its exhaustive image orders), from the lower end, sorted;

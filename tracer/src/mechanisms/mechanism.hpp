@@ -41,8 +41,7 @@ using Mechanisms = std::vector<std::unique_ptr<Mechanism>>;
 // diffuse. Each factory returns nullptr when its mechanism is off.
 Mechanisms make_mechanisms(const TracerConfig& cfg);
 
-// The per-pair steps that trace_pairs and the coherent re-solve
-// (tracer/coherence.hpp) share. label_pair: the direct line's LoS class,
+// The per-pair steps of trace_pairs. label_pair: the direct line's LoS class,
 // its Fresnel zone and label (into pair.zone and res). sequence_path: the
 // exact path through `faces` (with the vehicles as knife edges on its legs
 // when configured) appended to res.paths; false when it does not exist

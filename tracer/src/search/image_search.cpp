@@ -208,7 +208,7 @@ void image_candidates(const TraceScene& scene, const ImageFaces& faces, const st
   if (max_order >= 2) search.ground_then_vehicle();
   if (options.multi_bounce && max_order >= 2) search.on_one_vehicle(max_order);
   search.add_stats(stats);
-  if (max_order >= 2 && options.static_pairs)
+  if (max_order >= 2)
     static_pair_candidates(scene, faces, nodes, src, receivers, options.slabs,
                            options.ground_order3 && max_order >= 3 && faces.static_count > 0, out, stats);
 }

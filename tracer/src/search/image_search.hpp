@@ -72,9 +72,6 @@ struct ImageSearchOptions {
   // Order 3 among static faces with one on the ground (TracerConfig::
   // ground_order3), with static_pairs.
   bool ground_order3 = true;
-  // Sequences of two or more static faces (off: the vehicles' own, as
-  // tracer/coherence.hpp's per-frame pass searches them).
-  bool static_pairs = true;
   // No static sequence whose legs these bounds put over their cap (null:
   // no bounds).
   const SlabBounds* slabs = nullptr;
