@@ -467,6 +467,8 @@ Subcommand tradeoff_command(CLI::App& app) {
                  "frames swept with [sweep] coherence off and on, from the first with two vehicles (default 20; "
                  "--quick 4; 0: none)")
       ->check(CLI::Range(0, 1000));
+  to->add_option("--lattice-frames", tradeoff.lattice_frames,
+                 "the coherence window's [sweep] lattice_frames axis, e.g. 1,4 (default 1,2,4,8; --quick 1,4)");
   to->add_flag("--quick", tradeoff.quick, "a tiny grid: rays 256,1024, depths 1,2, simplify 2 m, 2 snapshots");
   to->add_flag("--no-chart", o->no_chart, "skip tradeoff.png");
   add_set_option(to, tradeoff.set);

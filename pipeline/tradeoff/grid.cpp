@@ -89,6 +89,9 @@ GridAxes parse_axes(const TradeoffArgs& args) {
   a.coherence_window = args.coherence_window >= 0 ? args.coherence_window : (args.quick ? 4 : 20);
   if (a.coherence_window > 1000)
     throw std::invalid_argument("--coherence-window: expected 0..1000, got " + std::to_string(args.coherence_window));
+  a.lattice_frames = args.lattice_frames.empty()
+                         ? (args.quick ? std::vector<int>{1, 4} : std::vector<int>{1, 2, 4, 8})
+                         : parse_int_list("--lattice-frames", args.lattice_frames, 1, 64);
   const int max_rays = a.rays.back(), max_depth = a.depths.back();
   a.ref_rays = args.reference_rays > 0 ? args.reference_rays : 4 * max_rays;
   if (args.reference_rays < 0 || a.ref_rays > 4 * kMaxGridRays)

@@ -30,6 +30,7 @@ struct GridAxes {
   std::vector<double> simplify;
   int ref_rays = 0, ref_depth = 0;
   int coherence_window = 0;  // frames; 0: no coherence toggle
+  std::vector<int> lattice_frames;  // the toggle's K axis
 };
 
 // std::invalid_argument naming the option for a value out of range.

@@ -154,12 +154,17 @@ std::string terminal_table(const std::vector<TradeoffSetting>& grid, const std::
 }
 
 std::string coherence_text(const CoherenceWindowResult& c, double t0) {
-  return fmt::format(
-      "\ncoherence over {} frames from t = {:.1f} s ({} pair-frames; [sweep] coherence off: every frame from scratch): "
-      "tracing {:.2f} s off, {:.2f} s on ({:.2f} x; {} sequences carried); LoS {:.2f} %, Fresnel {:.2f} %; "
-      "gain difference p50 / p99 / max {:.2f} / {:.2f} / {:.2f} dB{}\n",
-      c.frames, t0, c.pair_frames, c.trace_off_s, c.trace_on_s, c.speedup(), c.carried_on, 100 * c.los_agreement, 100 * c.fresnel_agreement, c.err_p50_db, c.err_p99_db, c.err_max_db,
-      c.same_links ? "" : " (the sweeps wrote different pairs)");
+  std::ostringstream text;
+  text << fmt::format(
+      "\ncoherence over {} frames from t = {:.1f} s ({} pair-frames), against the reference ({} rays, K = 4; "
+      "tracing {:.2f} s):\n{:>8} {:>10} {:>9} {:>8} {:>8} {:>22}\n",
+      c.frames, t0, c.pair_frames, c.reference_rays, c.reference_trace_s, "sweep", "tracing s", "carried", "LoS %",
+      "Fresnel %", "gain diff p50/p99/max");
+  for (const auto& s : c.sweeps)
+    text << fmt::format("{:>8} {:>10.2f} {:>9} {:>8.2f} {:>8.2f} {:>8.2f} /{:>5.2f} /{:>6.2f}{}\n", s.label, s.trace_s,
+                        s.carried, 100 * s.los_agreement, 100 * s.fresnel_agreement, s.err_p50_db, s.err_p99_db,
+                        s.err_max_db, s.same_links ? "" : " (other pairs than the reference's)");
+  return text.str();
 }
 
 }  // namespace
@@ -185,7 +190,8 @@ json tradeoff_provenance(const TradeoffArgs& args, const TradeoffInputs& in, con
                           {"quick", args.quick},
                           {"repeats", std::max(1, args.repeats)},
                           {"target_p95_db", args.target_p95_db},
-                          {"coherence_window", axes.coherence_window}};
+                          {"coherence_window", axes.coherence_window},
+                          {"lattice_frames", axes.lattice_frames}};
   json prov = provenance("tradeoff", inputs, cfg_json, recorded_command(argv));
   settings.record_sets(prov);
   prov["embree"] = tracer::embree_version();

@@ -1,6 +1,7 @@
 #include "pipeline/tradeoff/stage.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <tbb/task_arena.h>
 
@@ -38,9 +39,10 @@ void run_coherence_toggle(const TradeoffInputs& in, const Settings& settings, co
   std::vector<generators::SweepRsu> sweep_rsus;
   for (std::size_t k = 0; k < rsus.size(); ++k)
     sweep_rsus.push_back({static_cast<std::uint32_t>(k), {rsus[k].x, rsus[k].y, rsus[k].z}});
-  spdlog::info("tradeoff: coherence off and on over {} frames", window.size());
+  spdlog::info("tradeoff: coherence off, on with lattice_frames {}, and the reference ({} rays) over {} frames",
+               fmt::join(axes.lattice_frames, ","), axes.ref_rays, window.size());
   run.coherence = compare_coherence(*scenes.scene_for(0).scene, settings.trace.tracer, settings.trace.radio,
-                                    cfg.options, sweep_rsus, window);
+                                    cfg.options, sweep_rsus, window, axes.lattice_frames, axes.ref_rays);
   run.coherence_t0 = window.empty() ? 0.0 : window.front().time_s;
 }
 

@@ -42,6 +42,8 @@ struct TradeoffArgs {
   // The coherence toggle: this many consecutive frames swept with [sweep]
   // coherence off and on (coherence.hpp); 0: none; < 0: 20 (--quick 4).
   int coherence_window = -1;
+  // Its lattice_frames axis, comma-separated; empty: 1,2,4,8 (--quick 1,4).
+  std::string lattice_frames;
   bool chart = true;
 };
 

@@ -257,19 +257,33 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
   for (const char* role : {"scene", "fcd", "config", "vehicle_manifest"}) EXPECT_TRUE(roles.count(role)) << role;
   EXPECT_EQ(prov["config"]["tradeoff"]["reference_rays"], 4096);
   EXPECT_EQ(prov["config"]["tradeoff"]["coherence_window"], 4);  // --quick
-  // The coherence toggle: 4 frames swept with coherence off and on.
+  // The coherence toggle: 4 frames swept with coherence off, on with K = 1
+  // and 4 (--quick), each against the reference rays' coherent sweep.
+  EXPECT_EQ(prov["config"]["tradeoff"]["lattice_frames"], json::array({1, 4}));
   const json& coh = doc["coherence"];
   EXPECT_EQ(coh["frames"], 4);
   EXPECT_GT(coh["pair_frames"].get<int>(), 0);
-  EXPECT_TRUE(coh["same_links"].get<bool>());
-  EXPECT_GT(coh["trace_s_off"].get<double>(), 0);
-  EXPECT_GT(coh["speedup"].get<double>(), 0);
-  for (const char* k : {"los_agreement", "fresnel_agreement"}) {
-    EXPECT_GE(coh[k].get<double>(), 0) << k;
-    EXPECT_LE(coh[k].get<double>(), 1) << k;
+  EXPECT_EQ(coh["reference_rays"], 4096);
+  EXPECT_GT(coh["reference_trace_s"].get<double>(), 0);
+  ASSERT_EQ(coh["sweeps"].size(), 3u);
+  const json &off = coh["sweeps"][0], &k1 = coh["sweeps"][1], &k4 = coh["sweeps"][2];
+  EXPECT_EQ(off["label"], "off");
+  EXPECT_EQ(k4["label"], "K=4");
+  for (const json& s : coh["sweeps"]) {
+    EXPECT_TRUE(s["same_links"].get<bool>()) << s;
+    EXPECT_GT(s["trace_s"].get<double>(), 0) << s;
+    for (const char* k : {"los_agreement", "fresnel_agreement"}) {
+      EXPECT_GE(s[k].get<double>(), 0) << k;
+      EXPECT_LE(s[k].get<double>(), 1) << k;
+    }
+    EXPECT_LE(s["gain_diff_p50_db"].get<double>(), s["gain_diff_p99_db"].get<double>()) << s;
+    EXPECT_LE(s["gain_diff_p99_db"].get<double>(), s["gain_diff_max_db"].get<double>()) << s;
   }
-  EXPECT_LE(coh["gain_diff_p99_db"].get<double>(), coh["gain_diff_max_db"].get<double>());
-  EXPECT_GT(coh["carried_sequences_on"].get<int>(), 0) << "the coherent sweep carried nothing";
+  // K = 1 carries nothing and shoots the one lattice: the from-scratch sweep.
+  EXPECT_EQ(k1["carried_sequences"], 0);
+  EXPECT_EQ(k1["gain_diff_p99_db"], off["gain_diff_p99_db"]);
+  EXPECT_EQ(k1["gain_diff_max_db"], off["gain_diff_max_db"]);
+  EXPECT_GT(k4["carried_sequences"].get<int>(), 0) << "the coherent sweep carried nothing";
   EXPECT_NE(r.output.find("coherence over 4 frames"), std::string::npos) << r.output;
   EXPECT_EQ(prov["config"]["tracer"]["rays_per_source"], 1024);
   // Nothing left over from the atomic writes.
@@ -285,7 +299,7 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   auto r = run_raysweep("tradeoff --scene " + in.scene.string() + " --fcd " + in.fcd.string() + " --config " +
                         in.config.string() + " --rays 512 --depths 0,1 --simplify 0.1,1 --snapshots 1 "
                         "--reference-rays 2048 --reference-depth 2 --no-chart --out " + out.string() +
-                        " --coherence-window 3 --set sweep.lattice_frames=1");
+                        " --coherence-window 3 --lattice-frames 1");
   ASSERT_EQ(r.exit_code, 0) << r.output;
   std::string header;
   const auto rows = read_csv(out / "tradeoff.csv", &header);
@@ -301,15 +315,16 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   EXPECT_FALSE(fs::exists(out / "tradeoff.png"));
   const json doc = json::parse(read_text(out / "tradeoff.json"));
   EXPECT_EQ(doc["snapshots"].size(), 1u);
-  // lattice_frames = 1: the coherent sweep carries nothing and shoots the
-  // one lattice, so it must equal the from-scratch sweep to the bit.
+  // Only K = 1 on the axis: it carries nothing and shoots the one lattice,
+  // so it is the sweep with coherence off to the bit.
   const json& coh = doc["coherence"];
   EXPECT_EQ(coh["frames"], 3);
   EXPECT_GT(coh["pair_frames"].get<int>(), 0);
-  EXPECT_EQ(coh["carried_sequences_on"], 0);
-  EXPECT_EQ(coh["gain_diff_max_db"].get<double>(), 0.0);
-  EXPECT_EQ(coh["los_agreement"].get<double>(), 1.0);
-  EXPECT_EQ(coh["fresnel_agreement"].get<double>(), 1.0);
+  ASSERT_EQ(coh["sweeps"].size(), 2u);
+  const json &off = coh["sweeps"][0], &k1 = coh["sweeps"][1];
+  EXPECT_EQ(k1["carried_sequences"], 0);
+  for (const char* k : {"gain_diff_p50_db", "gain_diff_p99_db", "gain_diff_max_db", "los_agreement"})
+    EXPECT_EQ(off[k], k1[k]) << k;
 }
 
 TEST(CliTradeoff, BadInputExitsTwoAndWritesNothing) {
@@ -328,6 +343,7 @@ TEST(CliTradeoff, BadInputExitsTwoAndWritesNothing) {
   expect_fails(ok + " --rays 256,x", "'x'");
   expect_fails(ok + " --depths 1,99", "--depths");
   expect_fails(ok + " --simplify -1", "--simplify");
+  expect_fails(ok + " --lattice-frames 0,4", "--lattice-frames");
   expect_fails(ok + " --snapshots 0", "--snapshots");
   expect_fails("--scene " + in.scene.string() + " --fcd " + (dir / "none.xml").string() + " --out " + out.string(),
                "none.xml");
