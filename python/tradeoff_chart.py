@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Chart of a `raysweep tradeoff` table: tracer cost against accuracy.
 
-usage: tradeoff_chart.py TRADEOFF.csv OUT.png [--title TITLE]
+usage: tradeoff_chart.py TRADEOFF.csv OUT.png [--title TITLE] [--coherence TRADEOFF.json OUT2.png]
 
 Panels sharing a logarithmic x axis (median wall time of one snapshot, s):
 the 95th-percentile per-pair path-gain error against the reference, the same
@@ -12,14 +12,17 @@ not flatten the rest). Each setting is a numbered point, its label in the key
 on the right (labels written beside crowded points overlapped); the Pareto
 front (column `pareto`: not dominated in time and p95 error) is drawn through
 its points on the p95 panel, the config's own setting (column `base`) is
-ringed, and the reference is a star. The PNG is written to a temporary name
-next to OUT.png and renamed when complete.
+ringed, and the reference is a star. With --coherence, the JSON's coherence
+toggle too (each sweep's gain difference from the reference at p95 and p99
+against its tracing time: coherence off, and on for each lattice_frames K).
+Each PNG is written to a temporary name next to it and renamed when complete.
 
 Exit status 2 with a one-line error when the CSV is missing or lacks a column.
 Needs numpy and matplotlib (run with /usr/bin/python3 on Debian).
 """
 import argparse
 import csv
+import json
 import math
 import os
 import sys
@@ -125,6 +128,11 @@ def draw(rows, png, title):
                          for r in numbered)
     fig.text(0.755, 0.97, key_text, va="top", ha="left", fontsize=7, family="monospace")
     fig.tight_layout(rect=(0, 0, 0.75, 1))
+    save_atomic(fig, png)
+
+
+def save_atomic(fig, png):
+    """fig to png through a temporary name in its folder."""
     directory = os.path.dirname(os.path.abspath(png))
     fd, tmp = tempfile.mkstemp(prefix=".tradeoff-", suffix=".png", dir=directory)
     os.close(fd)
@@ -140,19 +148,48 @@ def draw(rows, png, title):
     plt.close(fig)
 
 
+def draw_coherence(coherence, png, title):
+    """The coherence toggle's sweeps (tradeoff.json's "coherence"): the gain
+    difference from the reference at p95 and p99 against the tracing time."""
+    sweeps = coherence["sweeps"]
+    t = [s["trace_s"] for s in sweeps]
+    fig, ax = plt.subplots(figsize=(6.4, 4.2))
+    for key, marker in (("gain_diff_p99_db", "o-"), ("gain_diff_p95_db", "s--")):
+        y = [s[key] if s[key] is not None else math.nan for s in sweeps]
+        ax.plot(t, y, marker, label=key.replace("gain_diff_", "").replace("_db", ""))
+        for ti, yi, s in zip(t, y, sweeps):
+            ax.annotate(s["label"], (ti, yi), fontsize=8, xytext=(3, 4), textcoords="offset points")
+    ax.set_xlabel(f"tracing time over {coherence['frames']} frames (s)")
+    ax.set_ylabel("|gain - reference| (dB, floored at the sensitivity)")
+    ax.set_title(f"{title}: coherence against {coherence['reference_rays']} rays", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_atomic(fig, png)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description="Chart of a raysweep tradeoff table.")
     p.add_argument("csv")
     p.add_argument("png")
     p.add_argument("--title", default="raysweep tradeoff")
+    p.add_argument("--coherence", nargs=2, metavar=("JSON", "PNG"),
+                   help="also chart the coherence toggle of this tradeoff.json into PNG")
     a = p.parse_args(argv)
     try:
         rows = read_rows(a.csv)
+        coherence = None
+        if a.coherence:
+            with open(a.coherence[0]) as f:
+                coherence = json.load(f).get("coherence")
     except (OSError, ValueError) as e:
         print(f"tradeoff_chart.py: {e}", file=sys.stderr)
         return 2
     draw(rows, a.png, a.title)
     print(a.png)
+    if coherence:
+        draw_coherence(coherence, a.coherence[1], a.title)
+        print(a.coherence[1])
     return 0
 
 

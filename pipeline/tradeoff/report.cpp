@@ -222,9 +222,13 @@ json write_outputs(const TradeoffArgs& args, const TradeoffInputs& in, const Tra
   write_file_atomic(dir / "tradeoff.json", doc.dump(1) + "\n");
   const fs::path png = dir / "tradeoff.png";
   bool chart = false;
+  const fs::path coherence_png = dir / "tradeoff.coherence.png";
   if (args.chart) {
-    chart = run_python_script("tradeoff_chart.py", {(dir / "tradeoff.csv").string(), png.string(), "--title",
-                                                    "raysweep tradeoff: " + in.title});
+    std::vector<std::string> chart_args{(dir / "tradeoff.csv").string(), png.string(), "--title",
+                                        "raysweep tradeoff: " + in.title};
+    if (run.coherence)
+      chart_args.insert(chart_args.end(), {"--coherence", (dir / "tradeoff.json").string(), coherence_png.string()});
+    chart = run_python_script("tradeoff_chart.py", chart_args);
     if (!chart) spdlog::warn("{}: no chart (python3 with matplotlib needed)", png.string());
   }
   json summary = {{"out", in.out},
@@ -237,6 +241,7 @@ json write_outputs(const TradeoffArgs& args, const TradeoffInputs& in, const Tra
                   {"suggested", doc["suggested"]},
                   {"target_p95_db", args.target_p95_db}};
   if (chart) summary["png"] = png.string();
+  if (chart && run.coherence) summary["coherence_png"] = coherence_png.string();
   return summary;
 }
 

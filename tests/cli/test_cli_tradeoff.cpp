@@ -234,9 +234,11 @@ TEST(CliTradeoff, QuickGridWritesCsvJsonAndChart) {
   EXPECT_EQ(ref.at("pareto"), "1");  // nothing else has zero error
 
   // The chart is a PNG.
-  const std::string png = read_text(out / "tradeoff.png");
-  ASSERT_GT(png.size(), 1000u);
-  EXPECT_EQ(png.substr(1, 3), "PNG");
+  for (const char* name : {"tradeoff.png", "tradeoff.coherence.png"}) {
+    const std::string png = read_text(out / name);
+    ASSERT_GT(png.size(), 1000u) << name;
+    EXPECT_EQ(png.substr(1, 3), "PNG") << name;
+  }
 
   // JSON: the same rows, the snapshots and provenance.
   const json doc = json::parse(read_text(out / "tradeoff.json"));
@@ -313,6 +315,7 @@ TEST(CliTradeoff, ExplicitListsAndBuiltInModels) {
   EXPECT_EQ(rows[1].at("label"), "r512 d0");
   EXPECT_EQ(rows.back().at("label"), "r512 d1 static 1m");
   EXPECT_FALSE(fs::exists(out / "tradeoff.png"));
+  EXPECT_FALSE(fs::exists(out / "tradeoff.coherence.png"));
   const json doc = json::parse(read_text(out / "tradeoff.json"));
   EXPECT_EQ(doc["snapshots"].size(), 1u);
   // Only K = 1 on the axis: it carries nothing and shoots the one lattice,
