@@ -272,13 +272,19 @@ Sweep::CachedLink Sweep::cache_link(const tracer::PairResult& res, const Antenna
 // sequences carried from its last lattice_frames frames; with diffuse_frames,
 // the frames before's lattices gathering diffuse power too.
 tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, const std::vector<NodePair>& todo) {
+  const std::uint64_t base = tracer_.lattice_turn;
   tracer::TracerConfig turned = tracer_;
+  if (carries()) turned.lattice_turn = frame_lattice_turn(base, frame);
   // The diffuse gathering also shoots the lattices of the frames before
-  // (their turns depend on the frame index alone: no state to carry).
-  for (std::uint32_t k = 1; k < options_.diffuse_frames; ++k)
-    turned.diffuse_turns.push_back(frame_lattice_turn(tracer_.lattice_turn, frame - k));
+  // (their turns depend on the frame index alone: no state to carry). An
+  // unturned sweep's own lattice is the base turn, which one of them can
+  // meet in the first frames: that one is drawn from another stream.
+  for (std::uint32_t k = 1; k < options_.diffuse_frames; ++k) {
+    std::uint64_t t = frame_lattice_turn(base, frame - k);
+    if (t == turned.lattice_turn) t = frame_lattice_turn(~base, frame - k);
+    turned.diffuse_turns.push_back(t);
+  }
   if (!carries()) return tracer::trace_pairs(scene_, ant.nodes, todo, turned, radio_);
-  turned.lattice_turn = frame_lattice_turn(tracer_.lattice_turn, frame);
   const auto carried = carried_sequences(frame, ant, todo);
   tracer::Snapshot traced = tracer::trace_pairs(scene_, ant.nodes, todo, turned, radio_, carried);
   for (std::size_t p = 0; p < todo.size(); ++p) keep_found(frame, ant, todo[p], traced.pairs[p], carried[p]);

@@ -304,7 +304,13 @@ TEST(TurnedLattice, DiffuseFramesShootTheFramesBeforesLattices) {
                                            vehicle(1, bus, 30 - 10 * t, 4, 270, 10)};
     const FrameRecord fr = sweep.step(f, t, now);
     auto by_hand = cfg;
-    by_hand.diffuse_turns = {generators::frame_lattice_turn(0, f - 1), generators::frame_lattice_turn(0, f - 2)};
+    // Frames 0 and 1: the turn of frame -1 is the unturned lattice (the
+    // sweep's own here), drawn from the other stream instead.
+    auto before = [&](std::uint64_t k) {
+      const std::uint64_t t = generators::frame_lattice_turn(0, f - k);
+      return t == 0 ? generators::frame_lattice_turn(~std::uint64_t{0}, f - k) : t;
+    };
+    by_hand.diffuse_turns = {before(1), before(2)};
     generators::Sweep fresh(scene, by_hand, {}, turned_options(1), {{10, {0, 9, 6}}});
     const FrameRecord want = fresh.step(0, t, now);
     generators::Sweep own(scene, cfg, {}, turned_options(1), {{10, {0, 9, 6}}});
