@@ -103,7 +103,6 @@ void sort_and_check(std::vector<SweepVehicle>& vehicles, const std::vector<Sweep
 // What changed since the last frame.
 struct Sweep::Motion {
   std::vector<Sphere> moved;           // every moved vehicle's old and new sphere, every departed one's last
-  std::vector<Sphere> arrived;         // vehicles new in this frame
   std::vector<std::uint32_t> updated;  // sorted node ids
   bool scene_changed = false, departed = false;
 };
@@ -132,7 +131,6 @@ Sweep::Motion Sweep::place_vehicles(const std::vector<SweepVehicle>& vehicles) {
     }
     if (update) {
       if (it != placed_.end()) motion.moved.push_back(bounding_sphere(it->second.v));
-      else motion.arrived.push_back(bounding_sphere(v));
       motion.moved.push_back(bounding_sphere(v));
       motion.updated.push_back(v.node);
       next[v.node] = Placed{v};
@@ -291,7 +289,7 @@ tracer::Snapshot Sweep::trace_todo(std::uint64_t frame, const Antennas& ant, con
   return traced;
 }
 
-// Per pair of `search`, its kept sequences (keep_found) stamped within the
+// Per pair of `search` (the frame's traced pairs), its kept sequences (keep_found) stamped within the
 // last lattice_frames frames whose vehicles are all still here, as this
 // frame's FaceRefs (older ones forgotten).
 std::vector<tracer::FaceSequences> Sweep::carried_sequences(std::uint64_t frame, const Antennas& ant,
