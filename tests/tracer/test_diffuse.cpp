@@ -735,6 +735,16 @@ std::vector<tracer::Node> street_nodes() {
   return {node("a", {0, 0, 1.5}, {10, 0, 0}), node("b", {40, 3, 1.6}), node("c", {-30, -2, 5}),
           node("d", {20, 2, 2}, {0, 5, 0}), node("e", {15, -5, 1.5}), node("f", {60, -3, 1.5})};
 }
+// Two reflections, every path kept, no diffraction: the street's diffuse
+// tests' tracer.
+tracer::TracerConfig street_config(int rays) {
+  tracer::TracerConfig cfg;
+  cfg.max_depth = 2;
+  cfg.rays_per_source = rays;
+  cfg.path_threshold_db = 0;
+  cfg.diffraction = false;
+  return cfg;
+}
 std::vector<double> pair_diffuse(const tracer::Snapshot& s) {
   std::vector<double> p;
   for (const auto& pair : s.pairs) p.push_back(powers(pair).diffuse);
@@ -984,11 +994,7 @@ TEST(Diffuse, RouletteIsUnbiasedWithinItsBoundAndSkipsShadowRays) {
   auto nodes = street_nodes();
   nodes.push_back(node("g", {-10, 4, 1.5}));
   nodes.push_back(node("h", {30, -6, 1.5}));
-  tracer::TracerConfig cfg;
-  cfg.max_depth = 2;
-  cfg.rays_per_source = 4096;
-  cfg.path_threshold_db = 0;
-  cfg.diffraction = false;
+  auto cfg = street_config(4096);
   cfg.diffuse_roulette_db = 300;  // off
   const auto off = tracer::trace_snapshot(scene, nodes, cfg, {});
   const auto p_off = pair_diffuse(off);
@@ -1037,11 +1043,7 @@ TEST(Diffuse, RouletteIsUnbiasedWithinItsBoundAndSkipsShadowRays) {
 TEST(Diffuse, MoreLatticesGiveTheMeanOfTheirEstimates) {
   const tracer::TraceScene scene(street());
   const auto nodes = street_nodes();
-  tracer::TracerConfig cfg;
-  cfg.max_depth = 2;
-  cfg.rays_per_source = 1024;
-  cfg.path_threshold_db = 0;
-  cfg.diffraction = false;
+  auto cfg = street_config(1024);
   cfg.diffuse_roulette_db = 300;  // off
   auto run = [&](std::uint64_t turn, std::vector<std::uint64_t> more) {
     auto c = cfg;
@@ -1081,13 +1083,9 @@ TEST(Diffuse, MoreLatticesGiveTheMeanOfTheirEstimates) {
 TEST(Diffuse, MoreLatticesScatterLessAroundTheConvergedPower) {
   const tracer::TraceScene scene(street());
   const auto nodes = street_nodes();
-  tracer::TracerConfig cfg;
-  cfg.max_depth = 2;
-  cfg.path_threshold_db = 0;
-  cfg.diffraction = false;
+  auto cfg = street_config(256 * 64);
   cfg.specular = false;
   cfg.refraction = false;
-  cfg.rays_per_source = 256 * 64;
   const auto truth = pair_diffuse(tracer::trace_snapshot(scene, nodes, cfg, {}));
   cfg.rays_per_source = 256;
   double sq1 = 0, sq3 = 0;
