@@ -12,6 +12,7 @@
 #include <iterator>
 #include <memory>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -208,6 +209,22 @@ TEST(ImageSearch, RandomStreetsMatchExhaustiveToOrder2) {
     compared += expect_contains(def, ref, 2, "seed " + std::to_string(seed));
   }
   EXPECT_GT(compared, 300u);
+}
+
+// The exhaustive reference holds every sequence for every pair: past its
+// memory bound it refuses with the numbers instead of being killed (the
+// demo city at depth 2 asked for more than 24 GB); the same street at
+// depth 2 runs.
+TEST(ImageSearch, ExhaustiveRefusesWhatItCannotHold) {
+  Street s = random_street(1, 10, 6);
+  tracer::TraceScene scene(s.scene);
+  try {
+    tracer::trace_snapshot(scene, s.nodes, specular_config(5, tracer::CandidateSearch::exhaustive), {});
+    ADD_FAILURE() << "depth 5 was not refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("faces to depth 5"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(tracer::trace_snapshot(scene, s.nodes, specular_config(2, tracer::CandidateSearch::exhaustive), {}));
 }
 
 // A crowded street: ground, two building walls, 40 vehicle-sized metal

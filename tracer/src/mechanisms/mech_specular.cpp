@@ -7,7 +7,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <iomanip>
 #include <optional>
+#include <sstream>
+#include <stdexcept>
 
 #include "exact_path.hpp"
 #include "mechanisms/mechanism.hpp"
@@ -39,6 +42,26 @@ void enumerate_all(const TraceScene& scene, int depth, std::vector<FaceRef>& cur
       enumerate_all(scene, depth, current, out);
       current.pop_back();
     }
+}
+
+// The exhaustive reference holds every sequence for every pair: a city's
+// thousands of faces at depth 2 already ask for more memory than a machine
+// has (the demo's: killed at 24 GB). Refused, with the numbers, above this
+// many sequences over all pairs (about 50 bytes each).
+constexpr double kMaxExhaustiveSequences = 2e8;
+
+void check_exhaustive_size(const TraceScene& scene, int depth, std::size_t pairs) {
+  double faces = 0;
+  for (std::uint32_t i = 0; i <= scene.vehicles().size(); ++i) faces += static_cast<double>(scene.face_count(i));
+  double sequences = 0, level = faces;
+  for (int d = 1; d <= depth; ++d, level *= std::max(faces - 1, 0.0)) sequences += level;
+  if (sequences * static_cast<double>(pairs) <= kMaxExhaustiveSequences) return;
+  std::ostringstream msg;
+  msg << std::setprecision(3) << "tracer.candidates = \"exhaustive\": " << faces << " faces to depth " << depth
+      << " make " << sequences << " sequences for each of " << pairs << " pairs, more than the "
+      << kMaxExhaustiveSequences << " this reference holds in memory; it is meant for small scenes (clip the scene, "
+      << "lower max_depth or trace fewer nodes)";
+  throw std::invalid_argument(msg.str());
 }
 
 // Each source's candidates into its pairs' lists, turned to run from the
@@ -175,6 +198,7 @@ class Specular final : public Mechanism {
     if (plan.n < 2) return;
     if (plan.image_search) image_search(plan, candidates_, stats);
     if (cfg.candidates == CandidateSearch::exhaustive) {
+      check_exhaustive_size(plan.scene, cfg.max_depth, plan.pairs.size());
       Sequences all;
       std::vector<FaceRef> current;
       enumerate_all(plan.scene, cfg.max_depth, current, all);
