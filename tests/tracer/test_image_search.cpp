@@ -35,6 +35,10 @@ tracer::TracerConfig specular_config(int depth, tracer::CandidateSearch search) 
   c.diffuse = false;
   c.diffraction = false;
   c.path_threshold_db = 0;  // compare whole path sets
+  // Sequences whose specular points lie on their faces: what the search
+  // proposes. With physical optics the exhaustive reference also solves the
+  // near misses beside vehicle faces, which only carrying brings (tracer.md).
+  c.facet_reflection = tracer::FacetReflection::go;
   return c;
 }
 
