@@ -143,6 +143,8 @@ def main():
     ap.add_argument("--reference-noise", action="store_true")
     ap.add_argument("--no-diffuse", action="store_true")
     ap.add_argument("--chart-only", action="store_true")
+    ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                    help="a setting for every sweep, as raysweep's --set (repeatable)")
     args = ap.parse_args()
     if args.chart_only:
         with open(os.path.join(args.out, "results.json")) as f:
@@ -152,7 +154,7 @@ def main():
     rows, noise_rows = [], []
     for case, city, begin in selected_cases(args.cases):
         out = os.path.join(args.out, case)
-        base = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + args.frames / 10 - 0.05}"]
+        base = [f"sweep.begin_s={begin}", f"sweep.end_s={begin + args.frames / 10 - 0.05}"] + args.set
         if args.no_diffuse:
             base.append("tracer.diffuse=false")
         _, ref = run(rs, city, out, base + REFERENCE, "R")

@@ -97,11 +97,13 @@ def poses(fcd, t, box, count, path):
     return len(rows)
 
 
-def trace(raysweep, scene_dir, poses_path, out, threads):
+def trace(raysweep, scene_dir, poses_path, out, threads, sets=()):
     """Wall seconds of the process and the tracing seconds it logs."""
     if os.path.exists(out):
         os.remove(out)
     cmd = [raysweep, "trace", "--scene", scene_dir, "--poses", poses_path, "--config", RECIPE, "--out", out]
+    for s in sets:
+        cmd += ["--set", s]
     if threads:
         cmd[1:1] = ["-j", str(threads)]
     t0 = time.perf_counter()
@@ -160,13 +162,14 @@ def chart(result, path):
     fig.savefig(path, dpi=110)
 
 
-def measure(builds, scene_dir, pp, out_prefix, rounds, threads):
+def measure(builds, scene_dir, pp, out_prefix, rounds, threads, sets=()):
     """Each build's snapshot `rounds` times, alternating: medians and the last outputs."""
     runs = [[] for _ in builds]
     for r in range(rounds):
         order = range(len(builds)) if r % 2 == 0 else reversed(range(len(builds)))
         for k in order:
-            runs[k].append(trace(os.path.join(builds[k], "raysweep"), scene_dir, pp, f"{out_prefix}-{k}.json", threads))
+            runs[k].append(trace(os.path.join(builds[k], "raysweep"), scene_dir, pp, f"{out_prefix}-{k}.json", threads,
+                                 sets))
     return runs
 
 
@@ -180,6 +183,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=3)
     ap.add_argument("--threads", type=int, default=0, help="raysweep -j (0: all cores)")
     ap.add_argument("--floor-db", type=float, default=-123.0, help="sensitivity - tx power of the recipe's radio")
+    ap.add_argument("--set", action="append", default=[], metavar="TABLE.KEY=VALUE",
+                    help="a setting for every trace, as raysweep's --set (repeatable)")
     a = ap.parse_args()
     if not os.path.exists(OSM):
         print(f"town_bench: skipped: {OSM} is absent (../shared/data)")
@@ -202,7 +207,7 @@ def main():
             if cases and n == cases[-1]["vehicles"]:
                 continue  # the box holds no more vehicles
             prefix = os.path.join(a.out, f"trace-{side}-{n}")
-            runs = measure(builds, scene_dir, pp, prefix, a.rounds, a.threads)
+            runs = measure(builds, scene_dir, pp, prefix, a.rounds, a.threads, a.set)
             pairs = n * (n - 1) // 2
             above = accuracy(f"{prefix}-0.json", f"{prefix}-0.json", a.floor_db)["above_floor"]
             case = {"vehicles": n, "pairs": pairs, "above_floor": above, "runs": []}
