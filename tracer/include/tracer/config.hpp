@@ -179,11 +179,10 @@ struct TracerConfig {
   // direct line) diffracts by its knife edge alone; between 1.0 and 0.55 r1
   // its UTD paths fade out linearly in clearance, so the two never add.
   bool vehicle_edge_diffraction = false;
-  // Reflections on vehicle faces by physical optics over the face (po) or
-  // as infinite mirrors (go, what Sionna RT does: peers compare like with
-  // like). po by default: fewer one-frame glints for about 1.2x the
-  // tracing (docs/tracer.md, docs/validation.md).
-  FacetReflection facet_reflection = FacetReflection::po;
+  // Reflections on vehicle faces as infinite mirrors (go, what Sionna RT
+  // does) or by physical optics over the face (po: fewer one-frame glints,
+  // but its near misses are sampled, not searched: docs/decisions.md).
+  FacetReflection facet_reflection = FacetReflection::go;
   // Vehicle-edge paths weaker than this (dB) below the pair's direct
   // free-space power are not traced (their field is computed first, the
   // legs' rays only for those above): away from its shadow and reflection
