@@ -33,7 +33,7 @@ part alone (the diffuse records are the frame's own lattice's at any K).
 
     /usr/bin/python3 bench/lattice_bench.py [--build build] [--out /tmp/raysweep-lattices]
         [--cases demo,ring,badhersfeld] [--ks 1,2,4,8,16] [--diffuse-frames 1,2,4]
-        [--more-rays 12288] [--frames 50] [--no-diffuse] [--reference-noise]
+        [--more-rays 12288] [--frames 50] [--no-diffuse] [--reference-noise] [--set TABLE.KEY=VALUE ...]
 
 Writes results.json, results.md and tradeoff.png (error p99 against tracing
 time per frame relative to K = 1, one line per city) under --out; with

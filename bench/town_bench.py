@@ -20,6 +20,7 @@ builds find the same paths).
 
   /usr/bin/python3 bench/town_bench.py [--builds build[,OTHER_BUILD]] [--out /tmp/raysweep-town]
       [--boxes 600,1200] [--vehicles 20,42,80,120] [--time 180] [--rounds 3] [--threads N]
+      [--set TABLE.KEY=VALUE ...]
 
 Writes results.json, results.md and cost.png under --out. The first run of a
 box builds its scene, and the first run of the bench the recipe's traffic
