@@ -41,9 +41,10 @@ std::vector<std::array<double, 4>> rectangle(double x0, double x1, double y0, do
 
 TEST(PhysicalOptics, RectangleIsTheProductOfFresnelIntegrals) {
   // (j / pi) int int exp(-j (x^2 + y^2)) over [x0, x1] x [y0, y1], the origin
-  // inside, on an edge, at a corner and outside; edges beyond a phase of 30
-  // radians are summed by their asymptotic series (long and far ones below).
-  const std::array<std::array<double, 4>, 9> boxes = {{{-0.3, 0.4, -0.2, 0.1},
+  // inside, on an edge, at a corner and outside; edges beyond a phase of 20
+  // radians are summed by their asymptotic series (long and far ones below,
+  // one whose edge passes 1e-170 from the origin: its square underflows).
+  const std::array<std::array<double, 4>, 10> boxes = {{{-0.3, 0.4, -0.2, 0.1},
                                                        {-2, 3, -4, 1.5},
                                                        {0, 2, -1, 1},
                                                        {0, 1.2, 0, 0.7},
@@ -51,7 +52,8 @@ TEST(PhysicalOptics, RectangleIsTheProductOfFresnelIntegrals) {
                                                        {-9, 9, -9, 9},
                                                        {-40, 35, 2, 3},
                                                        {-3, 25, -25, 4},
-                                                       {7, 12, -6, 8}}};
+                                                       {7, 12, -6, 8},
+                                                       {-10, 10, 1e-170, 5}}};
   for (const auto& b : boxes) {
     const cdouble truth = cdouble(0, 1 / kPi) * fresnel_1d(b[0], b[1]) * fresnel_1d(b[2], b[3]);
     const cdouble got = fresnel_region_factor(rectangle(b[0], b[1], b[2], b[3]));

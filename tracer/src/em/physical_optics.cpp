@@ -65,7 +65,10 @@ cdouble monotone_piece(double d2, double s0, double s1) {
     const double mid = std::max(s0, cut);
     const double c = std::sqrt(d2);
     const cdouble head = mid > s0 ? monotone_piece(d2, s0, mid) : cdouble{0};
-    const double plain = (std::atan(s1 / c) - std::atan(mid / c)) / c;
+    // atan(s1 / c) - atan(mid / c) over c, in a form that keeps its digits
+    // (and its limit 1 / mid - 1 / s1) as c -> 0, where d2 may underflow.
+    const double x = (s1 - mid) / (d2 + s1 * mid);
+    const double plain = c > 0 ? std::atan(c * x) / c : x;
     const cdouble waves = std::polar(1.0, -d2) * (oscillating_tail(d2, mid * mid) - oscillating_tail(d2, s1 * s1));
     return head + plain - waves;
   }
